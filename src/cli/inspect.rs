@@ -1,0 +1,172 @@
+//! `servosight inspect FILE.csv`: what is in a recording, or exactly where it is broken.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use servosight::signal::{Channel, Recording, read_recording};
+
+/// Arguments of `servosight inspect`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The recording to summarise (CSV v1).
+    pub file: PathBuf,
+    /// Report a gap where the time step exceeds this many median steps.
+    #[arg(long, default_value_t = 3.0)]
+    pub gap_factor: f64,
+    /// Write the summary as JSON to this file ("-" for stdout) instead of the table.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// The summary of one column.
+#[derive(Debug, serde::Serialize)]
+struct ColumnSummary {
+    name: String,
+    unit: Option<&'static str>,
+    kind: &'static str,
+    min: f64,
+    max: f64,
+    mean: f64,
+}
+
+/// The summary of a recording.
+#[derive(Debug, serde::Serialize)]
+struct Summary {
+    file: String,
+    rows: usize,
+    columns: usize,
+    duration_s: f64,
+    sample_rate_hz: Option<f64>,
+    metadata: Vec<(String, String)>,
+    gaps: Vec<Gap>,
+    column_summaries: Vec<ColumnSummary>,
+}
+
+#[derive(Debug, serde::Serialize)]
+struct Gap {
+    after_s: f64,
+    length_s: f64,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let recording = read_recording(&args.file).context("cannot read recording")?;
+    let summary = summarise(&recording, args.gap_factor);
+    match &args.json {
+        Some(path) => crate::servosight_cli::write_json(path, &summary)?,
+        None => print_table(&summary),
+    }
+    Ok(())
+}
+
+fn summarise(recording: &Recording, gap_factor: f64) -> Summary {
+    let column_summaries = recording
+        .names()
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let values = recording.column_at(i);
+            let (min, max, sum) = values.iter().fold(
+                (f64::INFINITY, f64::NEG_INFINITY, 0.0),
+                |(lo, hi, s), &v| (lo.min(v), hi.max(v), s + v),
+            );
+            let n = values.len().max(1) as f64;
+            ColumnSummary {
+                name: name.clone(),
+                unit: Channel::unit_of(name),
+                kind: kind_of(&Channel::parse(name)),
+                min: if values.is_empty() { 0.0 } else { min },
+                max: if values.is_empty() { 0.0 } else { max },
+                mean: sum / n,
+            }
+        })
+        .collect();
+    let time = recording.time();
+    Summary {
+        file: recording.source().to_string(),
+        rows: recording.len(),
+        columns: recording.names().len(),
+        duration_s: recording.duration_s(),
+        sample_rate_hz: recording.sample_rate_hz(),
+        metadata: recording.metadata().to_vec(),
+        gaps: recording
+            .gaps(gap_factor)
+            .into_iter()
+            .map(|(i, length_s)| Gap {
+                after_s: time[i],
+                length_s,
+            })
+            .collect(),
+        column_summaries,
+    }
+}
+
+fn kind_of(channel: &Channel) -> &'static str {
+    match channel {
+        Channel::Time => "time",
+        Channel::Servo { .. } => "servo",
+        Channel::Ambient | Channel::Coolant => "machine",
+        Channel::Reference { .. } => "reference",
+        Channel::Unknown => "other",
+    }
+}
+
+fn print_table(summary: &Summary) {
+    println!("{}", summary.file);
+    println!(
+        "  {} rows × {} columns, {:.1} s ({})",
+        summary.rows,
+        summary.columns,
+        summary.duration_s,
+        crate::servosight_cli::human_duration(summary.duration_s)
+    );
+    match summary.sample_rate_hz {
+        Some(rate) => println!(
+            "  sample rate {rate:.4} Hz (median step {:.6} s)",
+            1.0 / rate
+        ),
+        None => println!("  sample rate: fewer than two distinct times"),
+    }
+    for (key, value) in &summary.metadata {
+        if key.is_empty() {
+            println!("  # {value}");
+        } else {
+            println!("  {key}: {value}");
+        }
+    }
+    if summary.gaps.is_empty() {
+        println!("  no gaps");
+    } else {
+        println!("  {} gap(s):", summary.gaps.len());
+        for gap in summary.gaps.iter().take(20) {
+            println!(
+                "    after t = {:.3} s: {:.3} s without samples",
+                gap.after_s, gap.length_s
+            );
+        }
+        if summary.gaps.len() > 20 {
+            println!("    … {} more", summary.gaps.len() - 20);
+        }
+    }
+    let width = summary
+        .column_summaries
+        .iter()
+        .map(|c| c.name.len())
+        .max()
+        .unwrap_or(6)
+        .max(6);
+    println!(
+        "  {:<width$}  {:>5}  {:>9}  {:>14}  {:>14}  {:>14}",
+        "column", "unit", "kind", "min", "max", "mean"
+    );
+    for c in &summary.column_summaries {
+        println!(
+            "  {:<width$}  {:>5}  {:>9}  {:>14.6}  {:>14.6}  {:>14.6}",
+            c.name,
+            c.unit.unwrap_or(""),
+            c.kind,
+            c.min,
+            c.max,
+            c.mean
+        );
+    }
+}

@@ -1,0 +1,70 @@
+//! The command-line interface: one module per subcommand, each with its clap `Args` and a `run`.
+//!
+//! Library code returns typed errors (`thiserror`); this is the edge where they become
+//! `anyhow` errors and one clear line on stderr with a non-zero exit status.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod inspect;
+
+/// servosight: sensorless machine-tool condition monitoring from servo drive signals.
+#[derive(Debug, Parser)]
+#[command(name = "servosight", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Summarise a recording: columns, rate, duration, min/max/mean, gaps. Fails on bad input.
+    Inspect(inspect::Args),
+}
+
+/// Parses the command line, runs the command, and maps errors to one line on stderr.
+pub fn run() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Inspect(args)) => inspect::run(args),
+        None => {
+            use clap::CommandFactory;
+            Cli::command().print_help().map_err(anyhow::Error::from)
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            // `{:#}` prints the whole context chain on one line: "reading p.csv: line 5, ...".
+            eprintln!("error: {error:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// Writes `value` as pretty JSON to `path`, or to stdout when `path` is `-`.
+pub fn write_json<T: serde::Serialize>(path: &std::path::Path, value: &T) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let text = serde_json::to_string_pretty(value).context("serialising the JSON report")?;
+    if path.as_os_str() == "-" {
+        println!("{text}");
+    } else {
+        std::fs::write(path, text + "\n")
+            .with_context(|| format!("cannot write JSON report {}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// "2 h 05 min", "3 min 20 s", "12.5 s": durations as an operator reads them.
+pub fn human_duration(seconds: f64) -> String {
+    if seconds >= 3600.0 {
+        let minutes = (seconds / 60.0).round() as u64;
+        format!("{} h {:02} min", minutes / 60, minutes % 60)
+    } else if seconds >= 60.0 {
+        let s = seconds.round() as u64;
+        format!("{} min {:02} s", s / 60, s % 60)
+    } else {
+        format!("{seconds:.1} s")
+    }
+}

@@ -1,0 +1,12 @@
+//! servosight: sensorless machine-tool condition monitoring from the signals a CNC controller's
+//! servo drives already measure.
+//!
+//! Data flows one way (see `DESIGN.md`): a link produces frames, pure streaming estimators turn
+//! them into a machine state, view models turn the state into panels. This crate is organised the
+//! same way:
+//!
+//! - [`signal`]: channel names and units, the columnar [`signal::Recording`], the CSV v1 format.
+//! - [`sim`]: the lumped-parameter physics twin that stands in for the paper's FEA database.
+
+pub mod signal;
+pub mod sim;

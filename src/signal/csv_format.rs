@@ -1,0 +1,527 @@
+//! Recording format v1 on disk: a streaming reader and writer.
+//!
+//! ```text
+//! # machine: IT-25
+//! # scenario: production
+//! time_s,S.speed_rpm,S.torque_Nm,ambient_C,ref.S.elongation_um
+//! 0,0,0,21.3,0
+//! 1,1500,12.5,21.3,0.4
+//! ```
+//!
+//! UTF-8, comma separated, one header row, one row per sample. Lines that start with `#` before
+//! the header are metadata (`# key: value`; a `#` line without a colon is kept as a comment).
+//! Every cell is a finite number. Reading checks every row and stops at the first bad one with
+//! an error naming file, line and column; the rows before it are not lost (see
+//! [`RecordingReader::read_row`]).
+
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
+use std::path::Path;
+
+use super::error::{Location, RecordingError, quote_cell};
+use super::recording::{Recording, Schema};
+
+/// Reads a recording row by row.
+pub struct RecordingReader<R: Read> {
+    source: String,
+    metadata: Vec<(String, String)>,
+    schema: Schema,
+    csv: csv::Reader<io::Chain<io::Cursor<Vec<u8>>, BufReader<R>>>,
+    /// Lines before the header (metadata); csv positions count from the header line.
+    lines_before_header: u64,
+    record: csv::ByteRecord,
+    previous_time: Option<f64>,
+    rows_read: u64,
+}
+
+impl RecordingReader<File> {
+    /// Opens a recording file and reads its metadata and header.
+    pub fn open(path: &Path) -> Result<Self, RecordingError> {
+        let source = path.display().to_string();
+        let file = File::open(path).map_err(|source_err| RecordingError::Io {
+            source_name: source.clone(),
+            source: source_err,
+        })?;
+        Self::from_reader(file, &source)
+    }
+}
+
+impl<R: Read> RecordingReader<R> {
+    /// Reads the metadata and header from any byte stream; `source` names it in errors.
+    pub fn from_reader(reader: R, source: &str) -> Result<Self, RecordingError> {
+        let mut buffered = BufReader::with_capacity(1 << 16, reader);
+        let io_err = |e: io::Error| RecordingError::Io {
+            source_name: source.to_string(),
+            source: e,
+        };
+        let mut metadata = Vec::new();
+        let mut line_no: u64 = 0;
+        let mut line = Vec::new();
+        let header_bytes = loop {
+            line.clear();
+            let n = buffered.read_until(b'\n', &mut line).map_err(io_err)?;
+            if n == 0 {
+                return Err(RecordingError::NoHeader {
+                    source_name: source.to_string(),
+                });
+            }
+            line_no += 1;
+            if line_no == 1 && line.starts_with(b"\xEF\xBB\xBF") {
+                // Spreadsheet exports start with a byte-order mark.
+                line.drain(..3);
+            }
+            let text = trim_line_end(&line);
+            if text.iter().all(u8::is_ascii_whitespace) {
+                continue;
+            }
+            if let Some(rest) = text.strip_prefix(b"#") {
+                let at = || Location {
+                    source: source.to_string(),
+                    line: line_no,
+                    column: None,
+                };
+                let rest = std::str::from_utf8(rest).map_err(|_| RecordingError::Malformed {
+                    at: at(),
+                    message: "metadata line is not valid UTF-8".into(),
+                })?;
+                metadata.push(match rest.split_once(':') {
+                    Some((k, v)) => (k.trim().to_string(), v.trim().to_string()),
+                    None => (String::new(), rest.trim().to_string()),
+                });
+                continue;
+            }
+            break std::mem::take(&mut line);
+        };
+        let lines_before_header = line_no - 1;
+        let mut csv = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .flexible(true)
+            .from_reader(io::Cursor::new(header_bytes).chain(buffered));
+        let header = csv
+            .byte_headers()
+            .map_err(|e| csv_error(e, source, line_no))?;
+        let mut names = Vec::with_capacity(header.len());
+        for (i, cell) in header.iter().enumerate() {
+            let name = std::str::from_utf8(cell).map_err(|_| RecordingError::Malformed {
+                at: Location {
+                    source: source.to_string(),
+                    line: line_no,
+                    column: Some((i + 1, quote_cell(cell))),
+                },
+                message: "column name is not valid UTF-8".into(),
+            })?;
+            names.push(name.trim().to_string());
+        }
+        let schema = Schema::with_header_line(names, source, line_no)?;
+        Ok(RecordingReader {
+            source: source.to_string(),
+            metadata,
+            schema,
+            csv,
+            lines_before_header,
+            record: csv::ByteRecord::new(),
+            previous_time: None,
+            rows_read: 0,
+        })
+    }
+
+    /// The metadata read before the header.
+    pub fn metadata(&self) -> &[(String, String)] {
+        &self.metadata
+    }
+
+    /// The columns.
+    pub fn schema(&self) -> &Schema {
+        &self.schema
+    }
+
+    /// Rows read so far.
+    pub fn rows_read(&self) -> u64 {
+        self.rows_read
+    }
+
+    /// Reads the next row into `out` (cleared first). `Ok(false)` at the end of the file.
+    ///
+    /// On an error the reader has consumed the bad row; everything read before it is intact in
+    /// the caller's hands, so a recorder or an importer can keep what was good and report where
+    /// the file went wrong.
+    pub fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
+        let more = self
+            .csv
+            .read_byte_record(&mut self.record)
+            .map_err(|e| csv_error(e, &self.source, self.lines_before_header))?;
+        if !more {
+            return Ok(false);
+        }
+        let line = self
+            .record
+            .position()
+            .map_or(0, |p| p.line() + self.lines_before_header);
+        out.clear();
+        let expected = self.schema.len();
+        if self.record.len() != expected {
+            return Err(RecordingError::FieldCount {
+                at: self.location(line, None),
+                expected,
+                found: self.record.len(),
+            });
+        }
+        for (i, cell) in self.record.iter().enumerate() {
+            let value = parse_cell(cell).ok_or_else(|| RecordingError::NonNumeric {
+                at: self.location(line, Some(i)),
+                cell: quote_cell(cell),
+            })?;
+            if !value.is_finite() {
+                return Err(RecordingError::NonFinite {
+                    at: self.location(line, Some(i)),
+                    cell: quote_cell(cell),
+                });
+            }
+            if let Some((low, high)) = self.schema.range_of(i)
+                && !(low..=high).contains(&value)
+            {
+                return Err(RecordingError::OutOfRange {
+                    at: self.location(line, Some(i)),
+                    value,
+                    low,
+                    high,
+                });
+            }
+            out.push(value);
+        }
+        if let Some(previous_s) = self.previous_time
+            && out[0] < previous_s
+        {
+            return Err(RecordingError::TimeBackwards {
+                at: self.location(line, Some(0)),
+                time_s: out[0],
+                previous_s,
+            });
+        }
+        self.previous_time = Some(out[0]);
+        self.rows_read += 1;
+        Ok(true)
+    }
+
+    /// Reads every remaining row into a columnar [`Recording`].
+    pub fn read_to_end(mut self) -> Result<Recording, RecordingError> {
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); self.schema.len()];
+        let mut row = Vec::with_capacity(self.schema.len());
+        while self.read_row(&mut row)? {
+            for (column, &value) in columns.iter_mut().zip(&row) {
+                column.push(value);
+            }
+        }
+        Ok(Recording::from_parts(
+            self.source,
+            self.metadata,
+            self.schema,
+            columns,
+        ))
+    }
+
+    /// Like [`Self::read_to_end`], but on a bad row returns what was read before it together with
+    /// the error instead of discarding it.
+    pub fn read_until_error(mut self) -> (Recording, Option<RecordingError>) {
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); self.schema.len()];
+        let mut row = Vec::with_capacity(self.schema.len());
+        let error = loop {
+            match self.read_row(&mut row) {
+                Ok(true) => {
+                    for (column, &value) in columns.iter_mut().zip(&row) {
+                        column.push(value);
+                    }
+                }
+                Ok(false) => break None,
+                Err(e) => break Some(e),
+            }
+        };
+        let recording = Recording::from_parts(self.source, self.metadata, self.schema, columns);
+        (recording, error)
+    }
+
+    fn location(&self, line: u64, column: Option<usize>) -> Location {
+        Location {
+            source: self.source.clone(),
+            line,
+            column: column.map(|i| (i + 1, self.schema.names()[i].clone())),
+        }
+    }
+}
+
+/// Reads a whole recording file.
+pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
+    RecordingReader::open(path)?.read_to_end()
+}
+
+/// Parses one cell: a decimal or scientific number with optional surrounding spaces.
+fn parse_cell(cell: &[u8]) -> Option<f64> {
+    let cell = cell.trim_ascii();
+    // Rust's float parser also takes "inf", "NaN" and "infinity"; those are reported as
+    // non-finite, which is the more useful message, so they pass through here.
+    std::str::from_utf8(cell).ok()?.parse::<f64>().ok()
+}
+
+fn trim_line_end(line: &[u8]) -> &[u8] {
+    let line = line.strip_suffix(b"\n").unwrap_or(line);
+    line.strip_suffix(b"\r").unwrap_or(line)
+}
+
+fn csv_error(error: csv::Error, source: &str, lines_before_header: u64) -> RecordingError {
+    let line = error
+        .position()
+        .map_or(0, |p| p.line() + lines_before_header);
+    match error.into_kind() {
+        csv::ErrorKind::Io(e) => RecordingError::Io {
+            source_name: source.to_string(),
+            source: e,
+        },
+        other => RecordingError::Malformed {
+            at: Location {
+                source: source.to_string(),
+                line,
+                column: None,
+            },
+            message: format!("{other:?}"),
+        },
+    }
+}
+
+/// Writes a recording row by row. Every row is checked like a row that is read, so a writer
+/// can never produce a file its reader rejects.
+pub struct RecordingWriter<W: Write> {
+    out: BufWriter<W>,
+    source: String,
+    schema: Schema,
+    previous_time: Option<f64>,
+    rows_written: u64,
+    line: Vec<u8>,
+}
+
+impl RecordingWriter<File> {
+    /// Creates (truncates) a file and writes the metadata and header.
+    pub fn create(
+        path: &Path,
+        metadata: &[(String, String)],
+        schema: &Schema,
+    ) -> Result<Self, RecordingError> {
+        let source = path.display().to_string();
+        let file = File::create(path).map_err(|e| RecordingError::Io {
+            source_name: source.clone(),
+            source: e,
+        })?;
+        Self::new(file, &source, metadata, schema)
+    }
+}
+
+impl<W: Write> RecordingWriter<W> {
+    /// Writes the metadata and header to `writer`.
+    pub fn new(
+        writer: W,
+        source: &str,
+        metadata: &[(String, String)],
+        schema: &Schema,
+    ) -> Result<Self, RecordingError> {
+        let mut out = BufWriter::with_capacity(1 << 16, writer);
+        let mut head = Vec::new();
+        for (key, value) in metadata {
+            head.extend_from_slice(metadata_line(key, value).as_bytes());
+        }
+        let mut header = csv::Writer::from_writer(Vec::new());
+        let header_io = |e: csv::Error| RecordingError::Io {
+            source_name: source.to_string(),
+            source: io::Error::other(e),
+        };
+        header.write_record(schema.names()).map_err(header_io)?;
+        head.extend_from_slice(&header.into_inner().map_err(|e| RecordingError::Io {
+            source_name: source.to_string(),
+            source: e.into_error(),
+        })?);
+        out.write_all(&head).map_err(|e| RecordingError::Io {
+            source_name: source.to_string(),
+            source: e,
+        })?;
+        Ok(RecordingWriter {
+            out,
+            source: source.to_string(),
+            schema: schema.clone(),
+            previous_time: None,
+            rows_written: 0,
+            line: Vec::with_capacity(32 * schema.len()),
+        })
+    }
+
+    /// Checks and writes one row.
+    pub fn write_row(&mut self, row: &[f64]) -> Result<(), RecordingError> {
+        let line_no = self.rows_written + 2;
+        self.schema
+            .check_row(row, self.previous_time, &self.source, line_no)?;
+        self.line.clear();
+        let mut buffer = ryu::Buffer::new();
+        for (i, value) in row.iter().enumerate() {
+            if i > 0 {
+                self.line.push(b',');
+            }
+            self.line
+                .extend_from_slice(buffer.format_finite(*value).as_bytes());
+        }
+        self.line.push(b'\n');
+        self.out
+            .write_all(&self.line)
+            .map_err(|e| RecordingError::Io {
+                source_name: self.source.clone(),
+                source: e,
+            })?;
+        self.previous_time = Some(row[0]);
+        self.rows_written += 1;
+        Ok(())
+    }
+
+    /// Rows written so far.
+    pub fn rows_written(&self) -> u64 {
+        self.rows_written
+    }
+
+    /// Pushes buffered rows to the operating system (and, for files, to the disk cache).
+    pub fn flush(&mut self) -> Result<(), RecordingError> {
+        self.out.flush().map_err(|e| RecordingError::Io {
+            source_name: self.source.clone(),
+            source: e,
+        })
+    }
+
+    /// Flushes and returns the underlying writer.
+    pub fn finish(self) -> Result<W, RecordingError> {
+        let source = self.source;
+        self.out.into_inner().map_err(|e| RecordingError::Io {
+            source_name: source,
+            source: e.into_error(),
+        })
+    }
+}
+
+/// One metadata line, `# key: value\n` (or `# text\n` for a comment with an empty key).
+fn metadata_line(key: &str, value: &str) -> String {
+    let flat = |s: &str| s.replace(['\n', '\r'], " ");
+    if key.is_empty() {
+        format!("# {}\n", flat(value))
+    } else {
+        format!("# {}: {}\n", flat(key).replace(':', " "), flat(value))
+    }
+}
+
+/// Writes a whole recording to a file.
+pub fn write_recording(path: &Path, recording: &Recording) -> Result<(), RecordingError> {
+    let mut writer = RecordingWriter::create(path, recording.metadata(), recording.schema())?;
+    let mut row = Vec::with_capacity(recording.schema().len());
+    for i in 0..recording.len() {
+        recording.row_into(i, &mut row);
+        writer.write_row(&row)?;
+    }
+    writer.finish()?;
+    Ok(())
+}
+
+/// Writes a whole recording to any writer (a `Vec<u8>` in tests, stdout in the CLI).
+pub fn write_recording_to<W: Write>(writer: W, recording: &Recording) -> Result<W, RecordingError> {
+    let mut writer = RecordingWriter::new(
+        writer,
+        recording.source(),
+        recording.metadata(),
+        recording.schema(),
+    )?;
+    let mut row = Vec::with_capacity(recording.schema().len());
+    for i in 0..recording.len() {
+        recording.row_into(i, &mut row);
+        writer.write_row(&row)?;
+    }
+    writer.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str) -> Result<Recording, RecordingError> {
+        RecordingReader::from_reader(text.as_bytes(), "t.csv")?.read_to_end()
+    }
+
+    #[test]
+    fn reads_metadata_header_and_rows() {
+        let rec =
+            read("# machine: IT-25\n# a comment\ntime_s,X.speed_rpm,note\n0,1,2\n1,3,4\n").unwrap();
+        assert_eq!(rec.metadata_value("machine"), Some("IT-25"));
+        assert_eq!(rec.metadata()[1], (String::new(), "a comment".to_string()));
+        assert_eq!(rec.column("X.speed_rpm").unwrap(), &[1.0, 3.0]);
+        assert_eq!(rec.column("note").unwrap(), &[2.0, 4.0]);
+    }
+
+    #[test]
+    fn non_numeric_cell_names_file_line_and_column() {
+        let text = "# k: v\ntime_s,X.speed_rpm\n0,1\n1,2\n2,abc\n";
+        let err = read(text).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "t.csv: line 5, column 2 (`X.speed_rpm`): `abc` is not a number"
+        );
+    }
+
+    #[test]
+    fn wrong_field_count_nan_and_backwards_time_are_located() {
+        let err = read("time_s,a\n0,1\n1\n").unwrap_err().to_string();
+        assert_eq!(err, "t.csv: line 3: 1 fields, but the header has 2");
+        let err = read("time_s,a\n0,NaN\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "t.csv: line 2, column 2 (`a`): `NaN` is not a finite number"
+        );
+        let err = read("time_s,a\n0,1\n2,1\n1,1\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "t.csv: line 4, column 1 (`time_s`): time goes backwards: 1 s after 2 s"
+        );
+    }
+
+    #[test]
+    fn empty_file_and_metadata_only_have_no_header() {
+        for text in ["", "# a: b\n", "\n\n"] {
+            assert!(
+                matches!(read(text), Err(RecordingError::NoHeader { .. })),
+                "{text:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn read_until_error_keeps_the_good_rows() {
+        let reader =
+            RecordingReader::from_reader("time_s,a\n0,1\n1,2\n2,x\n3,4\n".as_bytes(), "t").unwrap();
+        let (rec, err) = reader.read_until_error();
+        assert_eq!(rec.len(), 2);
+        assert!(err.unwrap().to_string().contains("line 4"));
+    }
+
+    #[test]
+    fn crlf_bom_and_spaces_are_tolerated() {
+        let rec = read("\u{feff}time_s, a \r\n0, 1.5 \r\n").unwrap();
+        assert_eq!(rec.column("a").unwrap(), &[1.5]);
+    }
+
+    #[test]
+    fn writer_output_reads_back_identically() {
+        let mut rec = Recording::new(
+            "mem",
+            vec!["time_s".into(), "ref.X.straightness_h_um#3".into()],
+        )
+        .unwrap();
+        rec.set_metadata("scenario", "warm\nup");
+        rec.push_row(&[0.0, -1.0e-300]).unwrap();
+        rec.push_row(&[0.1, 123456.789]).unwrap();
+        let bytes = write_recording_to(Vec::new(), &rec).unwrap();
+        let back = RecordingReader::from_reader(bytes.as_slice(), "mem")
+            .unwrap()
+            .read_to_end()
+            .unwrap();
+        assert_eq!(back, rec);
+    }
+}

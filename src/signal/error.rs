@@ -1,0 +1,175 @@
+//! Errors of the recording format: each names the file, the line and, where there is one, the
+//! column, so an operator can open the file and find the bad cell.
+
+use std::fmt;
+
+/// Where in a recording a problem is: `file:line` plus the column when one is at fault.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Location {
+    /// The file (or stream) name as the user gave it.
+    pub source: String,
+    /// 1-based line number in the file, counting metadata lines.
+    pub line: u64,
+    /// 1-based column number and the column's name, when one column is at fault.
+    pub column: Option<(usize, String)>,
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: line {}", self.source, self.line)?;
+        if let Some((index, name)) = &self.column {
+            write!(f, ", column {index} (`{name}`)")?;
+        }
+        Ok(())
+    }
+}
+
+/// Everything that can be wrong with a recording, read or built.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordingError {
+    /// The file could not be opened, read or written.
+    #[error("{source_name}: {source}")]
+    Io {
+        /// The file name.
+        source_name: String,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file has no header row.
+    #[error("{source_name}: no header row (the file is empty or holds only metadata)")]
+    NoHeader {
+        /// The file name.
+        source_name: String,
+    },
+    /// The first column is not `time_s`.
+    #[error("{at}: the first column must be `time_s`, found `{found}`")]
+    FirstColumnNotTime {
+        /// The header line.
+        at: Location,
+        /// What the header has instead.
+        found: String,
+    },
+    /// A header names the same column twice.
+    #[error("{at}: duplicate column `{name}` (also column {first})")]
+    DuplicateColumn {
+        /// The header line and the second occurrence.
+        at: Location,
+        /// The column name.
+        name: String,
+        /// 1-based index of the first occurrence.
+        first: usize,
+    },
+    /// A header cell is empty.
+    #[error("{at}: empty column name")]
+    EmptyColumnName {
+        /// The header line and column.
+        at: Location,
+    },
+    /// A metadata line is not `# key: value`.
+    #[error("{at}: metadata line is not `# key: value`: `{text}`")]
+    MalformedMetadata {
+        /// The metadata line.
+        at: Location,
+        /// The line as read.
+        text: String,
+    },
+    /// The file is not valid UTF-8 or not valid CSV.
+    #[error("{at}: {message}")]
+    Malformed {
+        /// Where the parser stopped.
+        at: Location,
+        /// What it found.
+        message: String,
+    },
+    /// A row has a different number of fields than the header.
+    #[error("{at}: {found} fields, but the header has {expected}")]
+    FieldCount {
+        /// The row.
+        at: Location,
+        /// Fields in the header.
+        expected: usize,
+        /// Fields in this row.
+        found: usize,
+    },
+    /// A cell is not a number.
+    #[error("{at}: `{cell}` is not a number")]
+    NonNumeric {
+        /// The cell.
+        at: Location,
+        /// Its text (shortened if long).
+        cell: String,
+    },
+    /// A cell is NaN or infinite.
+    #[error("{at}: `{cell}` is not a finite number")]
+    NonFinite {
+        /// The cell.
+        at: Location,
+        /// Its text.
+        cell: String,
+    },
+    /// A value lies outside the physically plausible range of its channel.
+    #[error("{at}: {value} is outside the plausible range {low} to {high} of this channel")]
+    OutOfRange {
+        /// The cell.
+        at: Location,
+        /// The value read.
+        value: f64,
+        /// Lowest plausible value.
+        low: f64,
+        /// Highest plausible value.
+        high: f64,
+    },
+    /// `time_s` decreases.
+    #[error("{at}: time goes backwards: {time_s} s after {previous_s} s")]
+    TimeBackwards {
+        /// The row.
+        at: Location,
+        /// This row's time.
+        time_s: f64,
+        /// The previous row's time.
+        previous_s: f64,
+    },
+    /// A column a computation needs is not in the recording.
+    #[error("{source_name}: no column `{name}`{}", purpose_suffix(.needed_for))]
+    MissingColumn {
+        /// The file name.
+        source_name: String,
+        /// The column that was asked for.
+        name: String,
+        /// What needed it, when the caller said.
+        needed_for: Option<String>,
+    },
+    /// A column added to a recording has the wrong length.
+    #[error("{source_name}: column `{name}` has {found} values, the recording has {expected} rows")]
+    ColumnLength {
+        /// The recording's name.
+        source_name: String,
+        /// The column.
+        name: String,
+        /// Rows in the recording.
+        expected: usize,
+        /// Values offered.
+        found: usize,
+    },
+}
+
+fn purpose_suffix(purpose: &Option<String>) -> String {
+    purpose
+        .as_ref()
+        .map(|p| format!(" (needed for {p})"))
+        .unwrap_or_default()
+}
+
+/// Shortens a cell's text for an error message: a 10 MB garbage cell must not become a 10 MB
+/// error line.
+pub(crate) fn quote_cell(bytes: &[u8]) -> String {
+    const MAX: usize = 40;
+    let text = String::from_utf8_lossy(bytes);
+    if text.chars().count() <= MAX {
+        text.into_owned()
+    } else {
+        let head: String = text.chars().take(MAX).collect();
+        format!("{head}…")
+    }
+}

@@ -1,0 +1,13 @@
+//! Signals: channel names and units, the columnar [`Recording`], and recording format v1 (CSV).
+
+pub mod channel;
+pub mod csv_format;
+pub mod error;
+pub mod recording;
+
+pub use channel::{AxisId, Channel, Quantity, axis_column, reference_column};
+pub use csv_format::{
+    RecordingReader, RecordingWriter, read_recording, write_recording, write_recording_to,
+};
+pub use error::{Location, RecordingError};
+pub use recording::{Recording, Schema};
