@@ -1,1 +1,5 @@
-mod signal;
+//! The one integration-test binary (egui and friends are linked once, see DESIGN.md).
+
+mod common;
+mod recording_format;
+mod simulate_cli;

@@ -7,7 +7,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-mod inspect;
+pub mod inspect;
+mod simulate;
 
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
 #[derive(Debug, Parser)]
@@ -19,6 +20,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run the physics twin and write a recording (CSV v1).
+    Simulate(simulate::Args),
     /// Summarise a recording: columns, rate, duration, min/max/mean, gaps. Fails on bad input.
     Inspect(inspect::Args),
 }
@@ -27,11 +30,9 @@ enum Command {
 pub fn run() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Some(Command::Simulate(args)) => simulate::run(args),
         Some(Command::Inspect(args)) => inspect::run(args),
-        None => {
-            use clap::CommandFactory;
-            Cli::command().print_help().map_err(anyhow::Error::from)
-        }
+        None => simulate::run_default_day(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
