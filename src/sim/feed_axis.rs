@@ -564,10 +564,15 @@ impl FeedAxisModel {
 /// section of depth h bends it with curvature κ = α ΔT / h. With ΔT varying linearly from the
 /// motor end (κ₀) to the far end (κ₁), w'' = −κ and w(0) = w(L) = 0 give
 /// w(s) = κ₀ s (L − s) / 2 + (κ₁ − κ₀) s (L² − s²) / (6 L).
-/// Vertically the top (near motor and bearings) is warmer than the base; horizontally the
-/// screw side (bearings, motor flange) is warmer than the far side.
+/// Heat enters the bed where the motor and the bearings are bolted to it (the paper's reason
+/// why straightness follows motor and bearing temperatures): the top of the section at each end
+/// runs a share of the mounted parts' temperature rise above the base. Vertically both mounts
+/// sit on top; horizontally the motor and screw are on one side of the bed, so mostly the motor
+/// flange pulls that side.
 fn straightness(p: &FeedAxisParams, t: &[f64; NODES], h_um: &mut [f64], v_um: &mut [f64]) {
     const ALPHA: f64 = 11.0e-6; // cast iron, 1/K
+    /// Share of a mounted part's rise over the base that reaches the bed surface under it.
+    const MOUNT_SHARE: f64 = 1.0;
     let length = p.bed_length_mm / 1000.0;
     let offset = 0.5 * (p.bed_length_mm - p.stroke_mm) / 1000.0;
     let deflection = |k0: f64, k1: f64, s: f64| {
@@ -575,11 +580,11 @@ fn straightness(p: &FeedAxisParams, t: &[f64; NODES], h_um: &mut [f64], v_um: &m
     };
     let height = p.bed_height_mm / 1000.0;
     let width = p.bed_width_mm / 1000.0;
-    let kv0 = ALPHA * (t[BED_FRONT] - t[BASE]) / height;
-    let kv1 = ALPHA * (t[BED_BACK] - t[BASE]) / height;
-    // Half the section width sees the screw-side temperature.
-    let kh0 = ALPHA * 0.5 * (0.5 * (t[FRONT] + t[FLANGE]) - t[BED_FRONT]) / width;
-    let kh1 = ALPHA * 0.5 * (t[BACK] - t[BED_BACK]) / width;
+    let rise = |i: usize| MOUNT_SHARE * (t[i] - t[BASE]);
+    let kv0 = ALPHA * 0.5 * (rise(FLANGE) + rise(FRONT)) / height;
+    let kv1 = ALPHA * rise(BACK) / height;
+    let kh0 = ALPHA * (0.8 * rise(FLANGE) + 0.2 * rise(FRONT)) / width;
+    let kh1 = ALPHA * 0.3 * rise(BACK) / width;
     let nodes = h_um.len();
     for k in 0..nodes {
         let s = offset + (p.stroke_mm / 1000.0) * k as f64 / (nodes - 1) as f64;

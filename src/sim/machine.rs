@@ -154,6 +154,8 @@ pub struct SpindleParams {
     pub rear_bearing_J_per_K: f64,
     /// Heat capacity of the headstock housing, J/K.
     pub housing_J_per_K: f64,
+    /// Heat capacity of the bed and turret slide that carry the tool, J/K.
+    pub bed_J_per_K: f64,
     /// Stator to housing, W/K.
     pub stator_housing_W_per_K: f64,
     /// Stator to room air at standstill (fan off), W/K.
@@ -168,9 +170,15 @@ pub struct SpindleParams {
     pub bearing_air_W_per_K: f64,
     /// Housing to room air, W/K.
     pub housing_air_W_per_K: f64,
+    /// Housing to the bed it stands on, W/K.
+    pub housing_bed_W_per_K: f64,
+    /// Bed to room air, W/K.
+    pub bed_air_W_per_K: f64,
     /// How much convection grows at maximum speed: G(n) = G₀ (1 + gain · (n/n_max)^0.8).
     pub speed_cooling_gain: f64,
-    /// Effective shaft length whose growth moves the spindle nose, mm.
+    /// Effective shaft length whose growth moves the spindle nose relative to the tool, mm.
+    /// The tool sits on the bed, whose growth over the same height moves it the same way, so
+    /// elongation is α (L_shaft ΔT_shaft + L_housing ΔT_housing − (L_shaft + L_housing) ΔT_bed).
     pub shaft_length_mm: f64,
     /// Effective housing length whose growth moves the spindle nose, mm.
     pub housing_length_mm: f64,
@@ -321,10 +329,10 @@ impl Default for MachineParams {
             name: "IT-25 lathe (twin)".into(),
             room: RoomParams {
                 base_C: 20.0,
-                daily_amplitude_K: 1.5,
+                daily_amplitude_K: 1.0,
                 warmest_hour: 15.0,
                 start_hour: 7.0,
-                drift_K_per_h: 0.05,
+                drift_K_per_h: 0.02,
             },
             coolant: CoolantParams {
                 offset_from_room_K: -1.5,
@@ -383,6 +391,7 @@ impl Default for MachineParams {
                 front_bearing_J_per_K: 9_000.0,
                 rear_bearing_J_per_K: 7_000.0,
                 housing_J_per_K: 160_000.0,
+                bed_J_per_K: 450_000.0,
                 stator_housing_W_per_K: 4.0,
                 stator_air_W_per_K: 6.0,
                 front_bearing_housing_W_per_K: 9.0,
@@ -390,9 +399,11 @@ impl Default for MachineParams {
                 shaft_W_per_K: 3.0,
                 bearing_air_W_per_K: 1.2,
                 housing_air_W_per_K: 22.0,
+                housing_bed_W_per_K: 4.0,
+                bed_air_W_per_K: 40.0,
                 speed_cooling_gain: 1.5,
-                shaft_length_mm: 170.0,
-                housing_length_mm: 190.0,
+                shaft_length_mm: 270.0,
+                housing_length_mm: 300.0,
                 expansion_per_K: 11.5e-6,
             },
             x_axis: FeedAxisParams {
@@ -460,7 +471,7 @@ impl Default for MachineParams {
                     screw: 2_200.0,
                     bed_front: 60_000.0,
                     bed_back: 60_000.0,
-                    base: 400_000.0,
+                    base: 60_000.0,
                 },
                 conductance_W_per_K: FeedAxisConductances {
                     stator_flange: 2.0,
@@ -479,11 +490,11 @@ impl Default for MachineParams {
                     bed_front_base: 6.0,
                     bed_back_base: 6.0,
                     bed_air: 8.0,
-                    base_air: 25.0,
+                    base_air: 40.0,
                     speed_cooling_gain: 1.0,
                 },
-                bed_height_mm: 200.0,
-                bed_width_mm: 250.0,
+                bed_height_mm: 150.0,
+                bed_width_mm: 200.0,
                 bed_length_mm: 700.0,
             },
             measurement: MeasurementParams {

@@ -524,6 +524,17 @@ impl ScenarioGenerator {
                 },
                 ..Block::idle(0.0, 0.0, "tool change")
             },
+            // Turn-mill: the spindle indexes (C axis) while X contours a milled feature.
+            Block {
+                duration_s: rng.random_range(60.0..180.0),
+                x: XActivity::Traverse {
+                    from_mm: x0,
+                    to_mm: (x0 + rng.random_range(60.0..160.0)).min(stroke),
+                    feed_mm_per_min: rng.random_range(2000.0..8000.0),
+                    dwell_s: 0.2,
+                },
+                ..Block::idle(0.0, 0.0, "milling")
+            },
             Block {
                 duration_s: rng.random_range(120.0..300.0),
                 spindle_rpm: finish_rpm,

@@ -14,6 +14,7 @@ const STATOR: usize = 0;
 const FRONT: usize = 1;
 const REAR: usize = 2;
 const HOUSING: usize = 3;
+const BED: usize = 4;
 
 /// What the spindle is told during one sub-step.
 #[derive(Debug, Clone, Copy)]
@@ -61,17 +62,27 @@ pub struct SpindleModel {
     params: SpindleParams,
     coolant: CoolantParams,
     effects: EffectSet,
-    network: ThermalNetwork<4>,
+    network: ThermalNetwork<5>,
     speed_rpm: f64,
     angle_deg: f64,
     /// Heat energy per node accumulated since the last thermal step, J.
-    heat_J: [f64; 4],
+    heat_J: [f64; 5],
     /// Speed integrated since the last thermal step, rpm·s (for the mean convection).
     speed_integral: f64,
     accumulated_s: f64,
     /// Temperatures at the tool calibration moment (the start).
-    reference_C: [f64; 4],
+    reference_C: [f64; 5],
     reading: SpindleReading,
+}
+
+/// Spindle-nose displacement relative to the tool, mm, from node temperatures `t` and their
+/// values at tool calibration `reference`.
+fn elongation_mm(p: &SpindleParams, t: &[f64; 5], reference: &[f64; 5]) -> f64 {
+    let rise = |i: usize| t[i] - reference[i];
+    let shaft = 0.5 * (rise(FRONT) + rise(REAR));
+    p.expansion_per_K
+        * (p.shaft_length_mm * (shaft - rise(BED))
+            + p.housing_length_mm * (rise(HOUSING) - rise(BED)))
 }
 
 impl SpindleModel {
@@ -82,16 +93,14 @@ impl SpindleModel {
         effects: EffectSet,
         initial_C: f64,
     ) -> Self {
-        let structure = if effects.has(Effect::ThermalInertia) {
-            params.housing_J_per_K
-        } else {
-            0.0
-        };
+        let inertia = effects.has(Effect::ThermalInertia);
+        let structure = |value: f64| if inertia { value } else { 0.0 };
         let capacity = [
             params.stator_J_per_K,
             params.front_bearing_J_per_K,
             params.rear_bearing_J_per_K,
-            structure,
+            structure(params.housing_J_per_K),
+            structure(params.bed_J_per_K),
         ];
         SpindleModel {
             network: ThermalNetwork::new(capacity, initial_C),
@@ -100,10 +109,10 @@ impl SpindleModel {
             effects,
             speed_rpm: 0.0,
             angle_deg: 0.0,
-            heat_J: [0.0; 4],
+            heat_J: [0.0; 5],
             speed_integral: 0.0,
             accumulated_s: 0.0,
-            reference_C: [initial_C; 4],
+            reference_C: [initial_C; 5],
             reading: SpindleReading {
                 stator_C: initial_C,
                 front_bearing_C: initial_C,
@@ -196,6 +205,7 @@ impl SpindleModel {
             (FRONT, HOUSING, p.front_bearing_housing_W_per_K),
             (REAR, HOUSING, p.rear_bearing_housing_W_per_K),
             (FRONT, REAR, p.shaft_W_per_K),
+            (HOUSING, BED, p.housing_bed_W_per_K),
         ];
         let cooled = coolant_on && self.effects.has(Effect::Coolant);
         let mut environment = vec![
@@ -203,6 +213,7 @@ impl SpindleModel {
             (FRONT, p.bearing_air_W_per_K * convection, room_C),
             (REAR, p.bearing_air_W_per_K * convection, room_C),
             (HOUSING, p.housing_air_W_per_K, room_C),
+            (BED, p.bed_air_W_per_K, room_C),
         ];
         if cooled {
             environment.push((HOUSING, self.coolant.spindle_jacket_W_per_K, coolant_C));
@@ -217,15 +228,11 @@ impl SpindleModel {
                 heat,
             },
         );
-        self.heat_J = [0.0; 4];
+        self.heat_J = [0.0; 5];
         self.speed_integral = 0.0;
         self.accumulated_s = 0.0;
         let t = *self.network.temperatures();
-        let growth_mm = p.expansion_per_K
-            * (p.shaft_length_mm
-                * (0.5 * (t[FRONT] + t[REAR])
-                    - 0.5 * (self.reference_C[FRONT] + self.reference_C[REAR]))
-                + p.housing_length_mm * (t[HOUSING] - self.reference_C[HOUSING]));
+        let growth_mm = elongation_mm(p, &t, &self.reference_C);
         self.reading.stator_C = t[STATOR];
         self.reading.front_bearing_C = t[FRONT];
         self.reading.rear_bearing_C = t[REAR];
@@ -244,9 +251,20 @@ mod tests {
     use super::*;
     use crate::sim::machine::MachineParams;
 
-    /// A spindle soaked 10 K above its calibration temperature grows α·(L_shaft + L_housing)·ΔT.
+    /// Shaft and housing 10 K warmer than the bed that carries the tool: α·(L_shaft + L_housing)·ΔT.
     #[test]
-    fn uniform_soak_gives_alpha_l_delta_t_elongation() {
+    fn warm_headstock_on_a_cold_bed_grows_alpha_l_delta_t() {
+        let p = MachineParams::default().spindle;
+        let reference = [20.0; 5];
+        let warm = [25.0, 30.0, 30.0, 30.0, 20.0];
+        let expected = p.expansion_per_K * (p.shaft_length_mm + p.housing_length_mm) * 10.0;
+        assert!((elongation_mm(&p, &warm, &reference) - expected).abs() < 1e-15);
+    }
+
+    /// A machine soaked to a new room temperature grows as a whole: the tool moves with the
+    /// nose and the elongation returns to zero.
+    #[test]
+    fn uniform_soak_cancels_between_nose_and_tool() {
         let m = MachineParams::default();
         let mut spindle =
             SpindleModel::new(m.spindle.clone(), m.coolant.clone(), EffectSet::all(), 20.0);
@@ -255,18 +273,13 @@ mod tests {
             cutting_torque_Nm: 0.0,
             radial_load_N: 0.0,
         };
-        for _ in 0..(3 * 24 * 3600) {
+        for _ in 0..(4 * 24 * 3600) {
             spindle.substep(1.0, stop);
             spindle.thermal_step(30.0, 30.0, false);
         }
-        let p = &m.spindle;
-        let expected =
-            p.expansion_per_K * (p.shaft_length_mm + p.housing_length_mm) * 10.0 * 1000.0;
-        let got = spindle.reading().elongation_um;
-        assert!(
-            (got - expected).abs() < 1e-3 * expected,
-            "{got} µm vs {expected} µm"
-        );
+        assert!((spindle.reading().housing_C - 30.0).abs() < 1e-3);
+        let e = spindle.reading().elongation_um;
+        assert!(e.abs() < 1e-3, "{e} µm");
     }
 
     /// Without copper loss the stator runs cooler at the same load; the torque is unchanged.
