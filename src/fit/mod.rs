@@ -1,0 +1,11 @@
+//! Regression: the paper's multiple regression (Eq. 1) with its F-test and R² (Eqs. 2–4),
+//! statsmodels-compatible statistics, a terms language for polynomial and dynamic features,
+//! sensitivity analysis, model selection and online recalibration.
+
+pub mod design;
+pub mod error;
+pub mod terms;
+
+pub use design::Design;
+pub use error::{FitError, TermError};
+pub use terms::{Expr, INTERCEPT, Term, parse_terms};
