@@ -3,9 +3,12 @@
 //! sensitivity analysis, model selection and online recalibration.
 
 pub mod design;
+pub mod distributions;
 pub mod error;
+pub mod ols;
 pub mod terms;
 
 pub use design::Design;
 pub use error::{FitError, TermError};
+pub use ols::{Coefficient, OlsFit, OlsOptions, ols, ols_with};
 pub use terms::{Expr, INTERCEPT, Term, parse_terms};
