@@ -184,7 +184,7 @@ impl Design {
     }
 
     /// Copies row `i` of `X` into `out` (cleared first): the regressor vector an online
-    /// estimator or `RecursiveLeastSquares` takes.
+    /// estimator or [`super::RecursiveLeastSquares`] takes.
     pub fn row_into(&self, i: usize, out: &mut Vec<f64>) {
         out.clear();
         out.extend((0..self.terms.len()).map(|j| self.x[(i, j)]));

@@ -6,9 +6,17 @@ pub mod design;
 pub mod distributions;
 pub mod error;
 pub mod ols;
+pub mod rls;
+pub mod selection;
+pub mod sensitivity;
 pub mod terms;
 
 pub use design::Design;
 pub use error::{FitError, TermError};
 pub use ols::{Coefficient, OlsFit, OlsOptions, ols, ols_with};
+pub use rls::RecursiveLeastSquares;
+pub use selection::{
+    Criterion, CvScore, Direction, Selection, SelectionOptions, blocked_cross_validation, select,
+};
+pub use sensitivity::{TermSensitivity, sensitivity};
 pub use terms::{Expr, INTERCEPT, Term, parse_terms};
