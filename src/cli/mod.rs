@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod fit;
 mod inspect;
 
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
@@ -21,6 +22,8 @@ struct Cli {
 enum Command {
     /// Summarise a recording: columns, rate, duration, min/max/mean, gaps. Fails on bad input.
     Inspect(inspect::Args),
+    /// Multiple regression with F-test, R², t/p/CI, sensitivity and optional term selection.
+    Fit(fit::Args),
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -28,6 +31,7 @@ pub fn run() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Inspect(args)) => inspect::run(args),
+        Some(Command::Fit(args)) => fit::run(args),
         None => {
             use clap::CommandFactory;
             Cli::command().print_help().map_err(anyhow::Error::from)
