@@ -1,0 +1,15 @@
+//! The paper's estimators and the analyses built on them.
+//!
+//! - [`models`]: fitted models as stored in the machine profile, and their fast evaluation.
+//! - [`streaming`]: one streaming estimator per estimate (Eqs. 7–15).
+//! - [`pipeline`]: every estimator of a machine, bound to a frame layout.
+//! - [`calibration`]: fits the models from a simulation database and a few experiments.
+//! - [`accuracy`]: runs the pipeline over a recording and scores it against reference columns.
+
+pub mod accuracy;
+pub mod calibration;
+pub mod models;
+pub mod pipeline;
+pub mod streaming;
+
+pub use pipeline::{EstimatorPipeline, PipelineError};
