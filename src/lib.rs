@@ -6,7 +6,10 @@
 //! same way:
 //!
 //! - [`signal`]: channel names and units, the columnar [`signal::Recording`], the CSV v1 format.
+//! - [`fit`]: regression (OLS by QR with statsmodels' statistics, terms language, sensitivity,
+//!   selection, recursive least squares) that turns a database into estimator coefficients.
 //! - [`sim`]: the lumped-parameter physics twin that stands in for the paper's FEA database.
 
+pub mod fit;
 pub mod signal;
 pub mod sim;

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod fit;
 pub mod inspect;
 mod simulate;
 
@@ -24,6 +25,8 @@ enum Command {
     Simulate(simulate::Args),
     /// Summarise a recording: columns, rate, duration, min/max/mean, gaps. Fails on bad input.
     Inspect(inspect::Args),
+    /// Multiple regression with F-test, R², t/p/CI, sensitivity and optional term selection.
+    Fit(fit::Args),
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -32,6 +35,7 @@ pub fn run() -> ExitCode {
     let result = match cli.command {
         Some(Command::Simulate(args)) => simulate::run(args),
         Some(Command::Inspect(args)) => inspect::run(args),
+        Some(Command::Fit(args)) => fit::run(args),
         None => simulate::run_default_day(),
     };
     match result {
