@@ -7,6 +7,10 @@
 //!
 //! - [`signal`]: channel names and units, the columnar [`signal::Recording`], the CSV v1 format.
 //! - [`sim`]: the lumped-parameter physics twin that stands in for the paper's FEA database.
+//! - [`link`]: frame sources (replay, Modbus RTU controller), the register map, the recorder.
+//! - [`compensation`]: approved, bounded, verified and audited compensation writes.
 
+pub mod compensation;
+pub mod link;
 pub mod signal;
 pub mod sim;

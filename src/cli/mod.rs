@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod inspect;
+mod register_map;
 
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
 #[derive(Debug, Parser)]
@@ -21,6 +22,8 @@ struct Cli {
 enum Command {
     /// Summarise a recording: columns, rate, duration, min/max/mean, gaps. Fails on bad input.
     Inspect(inspect::Args),
+    /// Print the Modbus register map (JSON, or the Markdown tables of docs/register-map.md).
+    RegisterMap(register_map::Args),
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -28,6 +31,7 @@ pub fn run() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Inspect(args)) => inspect::run(args),
+        Some(Command::RegisterMap(args)) => register_map::run(args),
         None => {
             use clap::CommandFactory;
             Cli::command().print_help().map_err(anyhow::Error::from)
