@@ -7,8 +7,12 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod audit;
+mod compensate;
 mod inspect;
+mod record;
 mod register_map;
+mod serial_args;
 
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
 #[derive(Debug, Parser)]
@@ -24,6 +28,12 @@ enum Command {
     Inspect(inspect::Args),
     /// Print the Modbus register map (JSON, or the Markdown tables of docs/register-map.md).
     RegisterMap(register_map::Args),
+    /// Record every frame a controller sends (Modbus RTU) to a CSV v1 file.
+    Record(record::Args),
+    /// Propose, apply (approved, bounded, verified, audited) and roll back compensation values.
+    Compensate(compensate::Args),
+    /// Check the compensation audit log.
+    Audit(audit::Args),
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -32,6 +42,9 @@ pub fn run() -> ExitCode {
     let result = match cli.command {
         Some(Command::Inspect(args)) => inspect::run(args),
         Some(Command::RegisterMap(args)) => register_map::run(args),
+        Some(Command::Record(args)) => record::run(args),
+        Some(Command::Compensate(args)) => compensate::run(args),
+        Some(Command::Audit(args)) => audit::run(args),
         None => {
             use clap::CommandFactory;
             Cli::command().print_help().map_err(anyhow::Error::from)

@@ -50,11 +50,13 @@ pub enum CompensationKind {
 
 impl fmt::Display for CompensationId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            CompensationId::Backlash(axis) => write!(f, "backlash.{axis}"),
-            CompensationId::ThermalOffset(axis) => write!(f, "thermal_offset.{axis}"),
-            CompensationId::Straightness { axis, node } => write!(f, "straightness.{axis}#{node}"),
-        }
+        // `pad` so that width and alignment work in tables (`{id:<20}`).
+        let text = match self {
+            CompensationId::Backlash(axis) => format!("backlash.{axis}"),
+            CompensationId::ThermalOffset(axis) => format!("thermal_offset.{axis}"),
+            CompensationId::Straightness { axis, node } => format!("straightness.{axis}#{node}"),
+        };
+        f.pad(&text)
     }
 }
 

@@ -48,8 +48,8 @@ pub const AXIS_BLOCK_LEN: u16 = 16;
 /// Registers in the whole sample block.
 pub const SAMPLE_BLOCK_LEN: u16 = AXIS_BLOCKS_START + AXIS_BLOCK_LEN * MAPPED_AXES.len() as u16;
 
-/// Scaling of the ambient temperature register, °C per count.
-pub const AMBIENT_SCALE: f64 = 0.01;
+/// Counts per °C of the ambient temperature register.
+pub const AMBIENT_COUNTS_PER_UNIT: f64 = 100.0;
 
 /// How one value is stored in registers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -116,8 +116,10 @@ pub struct AxisField {
     pub offset: u16,
     /// Storage type.
     pub register_type: RegisterType,
-    /// Physical units per count.
-    pub scale: f64,
+    /// Counts per physical unit (a power of ten): `value = raw / counts_per_unit`. Dividing by
+    /// an exact integer gives the double nearest the decimal value (multiplying by 0.1 would
+    /// not), so decoded values print as short as they were meant.
+    pub counts_per_unit: f64,
 }
 
 /// The layout of every axis block.
@@ -126,43 +128,43 @@ pub const AXIS_FIELDS: [AxisField; 7] = [
         quantity: Quantity::Position,
         offset: 0,
         register_type: RegisterType::I32,
-        scale: 1e-4,
+        counts_per_unit: 1e4,
     },
     AxisField {
         quantity: Quantity::Command,
         offset: 2,
         register_type: RegisterType::I32,
-        scale: 1e-4,
+        counts_per_unit: 1e4,
     },
     AxisField {
         quantity: Quantity::Speed,
         offset: 4,
         register_type: RegisterType::I32,
-        scale: 0.01,
+        counts_per_unit: 100.0,
     },
     AxisField {
         quantity: Quantity::Torque,
         offset: 6,
         register_type: RegisterType::I32,
-        scale: 0.001,
+        counts_per_unit: 1000.0,
     },
     AxisField {
         quantity: Quantity::Current,
         offset: 8,
         register_type: RegisterType::I32,
-        scale: 0.001,
+        counts_per_unit: 1000.0,
     },
     AxisField {
         quantity: Quantity::Load,
         offset: 10,
         register_type: RegisterType::I16,
-        scale: 0.1,
+        counts_per_unit: 10.0,
     },
     AxisField {
         quantity: Quantity::StatorTemp,
         offset: 11,
         register_type: RegisterType::I16,
-        scale: 0.01,
+        counts_per_unit: 100.0,
     },
 ];
 
@@ -195,8 +197,8 @@ pub const STAGED_VALUES_START: u16 = 1010;
 pub const APPLIED_VALUES_START: u16 = 1110;
 /// Storage of every compensation value: i32, high word first.
 pub const COMPENSATION_REGISTER_TYPE: RegisterType = RegisterType::I32;
-/// Micrometres per count of every compensation value.
-pub const COMPENSATION_SCALE_UM: f64 = 0.1;
+/// Counts per micrometre of every compensation value (0.1 µm resolution).
+pub const COMPENSATION_COUNTS_PER_UM: f64 = 10.0;
 
 /// What the controller reports in [`COMMIT_STATUS_REGISTER`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -322,16 +324,16 @@ fn to_raw(
     name: &str,
     value: f64,
     register_type: RegisterType,
-    scale: f64,
+    counts_per_unit: f64,
 ) -> Result<i64, MapError> {
-    let raw = (value / scale).round();
+    let raw = (value * counts_per_unit).round();
     let (low, high) = register_type.raw_range();
     if !raw.is_finite() || raw < low as f64 || raw > high as f64 {
         return Err(MapError::OutOfRegisterRange {
             name: name.to_string(),
             value,
             register_type,
-            scale,
+            scale: 1.0 / counts_per_unit,
         });
     }
     Ok(raw as i64)
@@ -402,12 +404,12 @@ pub fn decode_sample(registers: &[u16]) -> Result<DecodedSample, MapError> {
         let base = axis_block_start(axis).unwrap_or(AXIS_BLOCKS_START);
         for field in AXIS_FIELDS {
             let register = base + field.offset;
-            let value = field.register_type.read(at(register)) as f64 * field.scale;
+            let value = field.register_type.read(at(register)) as f64 / field.counts_per_unit;
             let value = check(register, value, values.len())?;
             values.push(value);
         }
     }
-    let ambient = RegisterType::I16.read(at(AMBIENT_REGISTER)) as f64 * AMBIENT_SCALE;
+    let ambient = RegisterType::I16.read(at(AMBIENT_REGISTER)) as f64 / AMBIENT_COUNTS_PER_UNIT;
     let ambient = check(AMBIENT_REGISTER, ambient, values.len())?;
     values.push(ambient);
     let coolant = RegisterType::U16.read(at(COOLANT_REGISTER)) as f64;
@@ -448,14 +450,14 @@ pub fn encode_sample(sample: &DecodedSample) -> Result<Vec<u16>, MapError> {
             let Some((value, name)) = next.next() else {
                 break;
             };
-            let raw = to_raw(name, *value, field.register_type, field.scale)?;
+            let raw = to_raw(name, *value, field.register_type, field.counts_per_unit)?;
             field
                 .register_type
                 .write(raw, &mut registers[usize::from(base + field.offset)..]);
         }
     }
     if let Some((ambient, name)) = next.next() {
-        let raw = to_raw(name, *ambient, RegisterType::I16, AMBIENT_SCALE)?;
+        let raw = to_raw(name, *ambient, RegisterType::I16, AMBIENT_COUNTS_PER_UNIT)?;
         RegisterType::I16.write(raw, &mut registers[usize::from(AMBIENT_REGISTER)..]);
     }
     if let Some((coolant, name)) = next.next() {
@@ -468,7 +470,7 @@ pub fn encode_sample(sample: &DecodedSample) -> Result<Vec<u16>, MapError> {
 /// Rounds a compensation value to what the registers can hold (0.1 µm), so what is written
 /// and what is read back compare exactly.
 pub fn quantise_um(micrometres: f64) -> f64 {
-    (micrometres / COMPENSATION_SCALE_UM).round() * COMPENSATION_SCALE_UM
+    (micrometres * COMPENSATION_COUNTS_PER_UM).round() / COMPENSATION_COUNTS_PER_UM
 }
 
 /// Encodes a complete compensation table (every id of [`compensation_ids`]).
@@ -489,7 +491,7 @@ pub fn encode_compensation(values: &CompensationValues) -> Result<Vec<u16>, MapE
             &id.to_string(),
             value,
             COMPENSATION_REGISTER_TYPE,
-            COMPENSATION_SCALE_UM,
+            COMPENSATION_COUNTS_PER_UM,
         )?;
         COMPENSATION_REGISTER_TYPE.write(raw, &mut registers[i * words..]);
     }
@@ -511,7 +513,7 @@ pub fn decode_compensation(registers: &[u16]) -> Result<CompensationValues, MapE
         .enumerate()
         .map(|(i, id)| {
             let raw = COMPENSATION_REGISTER_TYPE.read(&registers[i * words..]);
-            (*id, quantise_um(raw as f64 * COMPENSATION_SCALE_UM))
+            (*id, raw as f64 / COMPENSATION_COUNTS_PER_UM)
         })
         .collect())
 }
@@ -639,7 +641,7 @@ pub fn describe() -> MapDescription {
             name: AMBIENT.into(),
             address: AMBIENT_REGISTER,
             register_type: RegisterType::I16,
-            scale: AMBIENT_SCALE,
+            scale: 1.0 / AMBIENT_COUNTS_PER_UNIT,
             unit: unit(AMBIENT),
         },
         FieldDescription {
@@ -673,7 +675,7 @@ pub fn describe() -> MapDescription {
                             name,
                             address: start + f.offset,
                             register_type: f.register_type,
-                            scale: f.scale,
+                            scale: 1.0 / f.counts_per_unit,
                         }
                     })
                     .collect(),
@@ -689,7 +691,7 @@ pub fn describe() -> MapDescription {
             staged: STAGED_VALUES_START + words * i as u16,
             applied: APPLIED_VALUES_START + words * i as u16,
             register_type: COMPENSATION_REGISTER_TYPE,
-            scale: COMPENSATION_SCALE_UM,
+            scale: 1.0 / COMPENSATION_COUNTS_PER_UM,
         })
         .collect();
     MapDescription {
@@ -814,7 +816,7 @@ pub fn markdown_tables() -> String {
     out.push_str(&format!(
         "Scale {} µm per count. Staged table {}..{} (written by the client), applied echo {}..{} \
          (written by the controller).\n\n",
-        COMPENSATION_SCALE_UM,
+        1.0 / COMPENSATION_COUNTS_PER_UM,
         h.staged_values_start,
         h.staged_values_start + h.table_len - 1,
         h.applied_values_start,
