@@ -1,1 +1,2 @@
+mod modbus_peer;
 mod signal;

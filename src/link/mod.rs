@@ -76,8 +76,11 @@ pub struct LinkStats {
     pub implausible_samples: u64,
     /// Serial port errors (open failures, read/write failures).
     pub io_errors: u64,
-    /// Times the port was (re)opened after the first.
+    /// Times the port was reopened after the line failed.
     pub reconnects: u64,
+    /// Times the port was reopened to resynchronise after garbage on the line (the line
+    /// itself stayed up).
+    pub resyncs: u64,
     /// Samples lost according to the sequence counter.
     pub lost_samples: u64,
     /// Gaps (runs of lost samples) in the sequence counter.

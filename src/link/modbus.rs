@@ -198,6 +198,9 @@ impl AsyncWrite for WireTap {
 enum Failure {
     Timeout,
     Crc,
+    /// Garbage the RTU decoder could not resynchronise on: it has shut its stream, and the
+    /// port has to be reopened before the next request.
+    CrcDecoderGaveUp,
     Exception(ExceptionCode),
     Protocol(String),
     Io(String),
@@ -208,6 +211,12 @@ impl std::fmt::Display for Failure {
         match self {
             Failure::Timeout => write!(f, "no reply within the timeout"),
             Failure::Crc => write!(f, "reply with a bad CRC (discarded)"),
+            Failure::CrcDecoderGaveUp => {
+                write!(
+                    f,
+                    "reply with a bad CRC (discarded; reopening the port to resynchronise)"
+                )
+            }
             Failure::Exception(code) => write!(f, "Modbus exception {code:?}"),
             Failure::Protocol(message) => write!(f, "protocol error: {message}"),
             Failure::Io(message) => write!(f, "port error: {message}"),
@@ -248,7 +257,7 @@ fn classify(error: Option<tokio_modbus::Error>, reply: &[u8]) -> Failure {
         Some(tokio_modbus::Error::Transport(io)) => {
             if io.kind() == std::io::ErrorKind::InvalidData {
                 // The decoder gave up resynchronising: garbage on the line.
-                Failure::Crc
+                Failure::CrcDecoderGaveUp
             } else {
                 Failure::Io(io.to_string())
             }
@@ -327,7 +336,7 @@ impl Connection {
         ends.status.send_modify(|s| {
             match &failure {
                 Failure::Timeout => s.stats.timeouts += 1,
-                Failure::Crc => s.stats.crc_errors += 1,
+                Failure::Crc | Failure::CrcDecoderGaveUp => s.stats.crc_errors += 1,
                 Failure::Exception(_) => s.stats.exceptions += 1,
                 Failure::Protocol(_) => s.stats.protocol_errors += 1,
                 Failure::Io(_) => s.stats.io_errors += 1,
@@ -454,6 +463,7 @@ async fn run_modbus(config: ModbusConfig, mut ends: SourceEnds) {
     let mut sequence = SequenceTracker::default();
     let mut opened_before = false;
     let mut open_failures: u32 = 0;
+    let mut resyncing = false;
     loop {
         let mut connection = match open(&config) {
             Ok(connection) => connection,
@@ -473,34 +483,52 @@ async fn run_modbus(config: ModbusConfig, mut ends: SourceEnds) {
         };
         open_failures = 0;
         ends.status.send_modify(|s| {
-            if opened_before {
+            if resyncing {
+                s.stats.resyncs += 1;
+            } else if opened_before {
                 s.stats.reconnects += 1;
             }
             s.set_line_open(true);
         });
         opened_before = true;
-        let keep_going = serve(&config, &mut connection, &mut ends, &mut sequence, started).await;
+        let reopen = serve(&config, &mut connection, &mut ends, &mut sequence, started).await;
         // Dropping the connection closes the port before it is opened again.
         drop(connection);
-        ends.status.send_modify(|s| s.set_line_open(false));
-        if !keep_going {
-            return;
-        }
-        if !pause_answering(config.min_backoff, &mut ends, "reconnecting").await {
-            return;
+        resyncing = reopen == Reopen::Resync;
+        match reopen {
+            Reopen::Stop => return,
+            // The line itself is fine: the state stays as it is while the port is reopened.
+            Reopen::Resync => {}
+            Reopen::Reconnect => {
+                ends.status.send_modify(|s| s.set_line_open(false));
+                if !pause_answering(config.min_backoff, &mut ends, "reconnecting").await {
+                    return;
+                }
+            }
         }
     }
 }
 
-/// Polls and answers commands on an open port. Returns `false` when the handle is gone, `true`
-/// when the port should be reopened.
+/// Why [`serve`] returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reopen {
+    /// The handle is gone: stop.
+    Stop,
+    /// The line failed: close, mark disconnected, reopen with backoff.
+    Reconnect,
+    /// The line is fine but the RTU decoder shut down on garbage: reopen at once.
+    Resync,
+}
+
+/// Polls and answers commands on an open port until the port must be reopened or the handle
+/// is gone.
 async fn serve(
     config: &ModbusConfig,
     connection: &mut Connection,
     ends: &mut SourceEnds,
     sequence: &mut SequenceTracker,
     started: Instant,
-) -> bool {
+) -> Reopen {
     let period = config.poll_period();
     let mut next_poll = Instant::now();
     let mut failures: u32 = 0;
@@ -508,7 +536,7 @@ async fn serve(
         tokio::select! {
             biased;
             command = ends.commands.recv() => {
-                let Some(command) = command else { return false };
+                let Some(command) = command else { return Reopen::Stop };
                 match command {
                     LinkCommand::ReadCompensation(reply) => {
                         let result = read_applied(config, connection, ends).await;
@@ -543,7 +571,7 @@ async fn serve(
                                     row.extend_from_slice(&sample.values);
                                     let frame = Frame { row, sequence: Some(sample.sequence), lost_before };
                                     if ends.frames.send(frame).await.is_err() {
-                                        return false;
+                                        return Reopen::Stop;
                                     }
                                     ends.status.send_modify(|s| {
                                         if lost_before > 0 {
@@ -567,8 +595,11 @@ async fn serve(
                     }
                     Err(failure) => {
                         failures += 1;
+                        if failure == Failure::CrcDecoderGaveUp {
+                            return Reopen::Resync;
+                        }
                         if matches!(failure, Failure::Io(_)) || failures >= config.reconnect_after_failures {
-                            return true;
+                            return Reopen::Reconnect;
                         }
                         next_poll = Instant::now() + backoff(config, failures);
                     }
@@ -692,7 +723,10 @@ mod tests {
             Failure::Crc
         );
         let io = std::io::Error::new(std::io::ErrorKind::InvalidData, "Too many retries");
-        assert_eq!(classify(Some(io.into()), &[1, 2, 3]), Failure::Crc);
+        assert_eq!(
+            classify(Some(io.into()), &[1, 2, 3]),
+            Failure::CrcDecoderGaveUp
+        );
     }
 
     #[test]
