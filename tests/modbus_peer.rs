@@ -916,3 +916,73 @@ fn compensate_cli_applies_with_an_approver_and_audit_verify_catches_an_edit() {
         String::from_utf8_lossy(&verify.stderr)
     );
 }
+
+#[test]
+fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
+    require_tools();
+    let dir = tempfile::tempdir().unwrap();
+    // A recording with every column of the map: stator temperatures ramp 20 → 40 °C.
+    let columns = register_map::sample_columns();
+    let mut text = columns.join(",") + "\n";
+    for i in 0..=200 {
+        let row: Vec<String> = columns
+            .iter()
+            .map(|name| match name.as_str() {
+                "time_s" => format!("{}", i as f64 * 0.05),
+                n if n.ends_with("stator_temp_C") => format!("{}", 20.0 + i as f64 * 0.1),
+                "coolant_on" => "1".into(),
+                _ => "0".into(),
+            })
+            .collect();
+        text.push_str(&(row.join(",") + "\n"));
+    }
+    let source = dir.path().join("source.csv");
+    std::fs::write(&source, text).unwrap();
+    let pair = pty_pair(dir.path(), "line");
+    let _controller = Process(
+        servosight()
+            .arg("sim-controller")
+            .arg("--port")
+            .arg(&pair.b)
+            .arg("--replay")
+            .arg(&source)
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let mut link = ControllerLink::modbus(config(&pair.a, 100.0)).unwrap();
+    let mut frames = Vec::new();
+    wait_connected(&mut link, &mut frames);
+    pump(
+        &mut link,
+        Duration::from_secs(2),
+        &mut |f| frames.push(f),
+        |_| false,
+    );
+    let temp = link
+        .schema()
+        .index_of(&axis_column(AxisId::X, Quantity::StatorTemp))
+        .unwrap();
+    let temps: Vec<f64> = frames.iter().map(|f| f.row[temp]).collect();
+    assert!(temps.len() > 100);
+    assert!(temps.iter().all(|t| (20.0..=40.0).contains(t)), "{temps:?}");
+    assert!(
+        temps.last().unwrap() > temps.first().unwrap(),
+        "the replay advances"
+    );
+    assert_eq!(link.status().stats.lost_samples, 0);
+
+    let offset = CompensationId::ThermalOffset(AxisId::Z);
+    let approved = Request::new(proposal(&[(offset, -15.0)]), "otto")
+        .unwrap()
+        .approve(&users(), "maria", "pw-maria")
+        .unwrap();
+    let mut audit = AuditLog::open(&dir.path().join("audit.jsonl")).unwrap();
+    let report =
+        compensation::apply(&link, &CompensationLimits::default(), &mut audit, approved).unwrap();
+    assert_eq!(report.steps, 1);
+    assert_eq!(
+        link.read_compensation().wait().unwrap().get(offset),
+        Some(-15.0)
+    );
+}

@@ -1,2 +1,3 @@
+mod link_replay;
 mod modbus_peer;
 mod signal;

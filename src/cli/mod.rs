@@ -13,6 +13,7 @@ mod inspect;
 mod record;
 mod register_map;
 mod serial_args;
+mod sim_controller;
 
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
 #[derive(Debug, Parser)]
@@ -34,6 +35,8 @@ enum Command {
     Compensate(compensate::Args),
     /// Check the compensation audit log.
     Audit(audit::Args),
+    /// Serve a recording as a Modbus RTU controller speaking the register map.
+    SimController(sim_controller::Args),
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -45,6 +48,7 @@ pub fn run() -> ExitCode {
         Some(Command::Record(args)) => record::run(args),
         Some(Command::Compensate(args)) => compensate::run(args),
         Some(Command::Audit(args)) => audit::run(args),
+        Some(Command::SimController(args)) => sim_controller::run(args),
         None => {
             use clap::CommandFactory;
             Cli::command().print_help().map_err(anyhow::Error::from)

@@ -11,6 +11,7 @@
 //! Sources: [`replay`] (a CSV v1 file at 1×, N× or as fast as possible, with pause and seek) and
 //! [`modbus`] (a controller over Modbus RTU on a serial line, map in [`register_map`]).
 
+pub mod controller_sim;
 pub mod modbus;
 pub mod recorder;
 pub mod register_map;
