@@ -986,3 +986,72 @@ fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
         Some(-15.0)
     );
 }
+
+#[test]
+fn sim_controller_serves_the_twin_with_z_at_rest() {
+    require_tools();
+    let dir = tempfile::tempdir().unwrap();
+    let pair = pty_pair(dir.path(), "line");
+    let _controller = Process(
+        servosight()
+            .args([
+                "sim-controller",
+                "--scenario",
+                "production",
+                "--speed",
+                "120",
+            ])
+            .arg("--port")
+            .arg(&pair.b)
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let mut link = ControllerLink::modbus(config(&pair.a, 50.0)).unwrap();
+    let mut frames = Vec::new();
+    wait_connected(&mut link, &mut frames);
+    pump(
+        &mut link,
+        Duration::from_secs(3),
+        &mut |f| frames.push(f),
+        |_| false,
+    );
+    let schema = link.schema().clone();
+    let column = |axis, quantity| {
+        let i = schema.index_of(&axis_column(axis, quantity)).unwrap();
+        frames.iter().map(move |f| f.row[i]).collect::<Vec<f64>>()
+    };
+    let ambient_index = schema.index_of("ambient_C").unwrap();
+    // The twin's X and S move; Z is published at rest, its stator at room temperature.
+    let x_position = column(AxisId::X, Quantity::Position);
+    assert!(
+        x_position.iter().any(|p| (p - x_position[0]).abs() > 1e-3),
+        "X never moved in 6 simulated minutes"
+    );
+    assert!(
+        column(AxisId::S, Quantity::StatorTemp)
+            .iter()
+            .all(|t| (0.0..150.0).contains(t))
+    );
+    assert!(column(AxisId::Z, Quantity::Speed).iter().all(|v| *v == 0.0));
+    for frame in &frames {
+        let z_temp = frame.row[schema
+            .index_of(&axis_column(AxisId::Z, Quantity::StatorTemp))
+            .unwrap()];
+        assert!(
+            (z_temp - frame.row[ambient_index]).abs() < 0.006,
+            "{z_temp}"
+        );
+    }
+    let backlash = CompensationId::Backlash(AxisId::X);
+    let approved = Request::new(proposal(&[(backlash, 4.0)]), "otto")
+        .unwrap()
+        .approve(&users(), "maria", "pw-maria")
+        .unwrap();
+    let mut audit = AuditLog::open(&dir.path().join("audit.jsonl")).unwrap();
+    compensation::apply(&link, &CompensationLimits::default(), &mut audit, approved).unwrap();
+    assert_eq!(
+        link.read_compensation().wait().unwrap().get(backlash),
+        Some(4.0)
+    );
+}

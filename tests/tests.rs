@@ -1,3 +1,7 @@
+//! The one integration-test binary (egui and friends are linked once, see DESIGN.md).
+
+mod common;
 mod link_replay;
 mod modbus_peer;
-mod signal;
+mod recording_format;
+mod simulate_cli;

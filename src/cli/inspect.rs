@@ -170,3 +170,66 @@ fn print_table(summary: &Summary) {
         );
     }
 }
+
+/// An hour-by-hour summary of a shift on the twin: what ran, how hot it got, how far the spindle
+/// grew. Columns a recording lacks are left out of the table.
+pub fn print_day_summary(recording: &Recording) -> anyhow::Result<()> {
+    use servosight::signal::{AxisId, Quantity, axis_column, reference_column};
+    let time = recording.time();
+    let wanted = [
+        ("S rpm", axis_column(AxisId::S, Quantity::Speed)),
+        ("S load %", axis_column(AxisId::S, Quantity::Load)),
+        ("S stator °C", axis_column(AxisId::S, Quantity::StatorTemp)),
+        ("X stator °C", axis_column(AxisId::X, Quantity::StatorTemp)),
+        ("X nut °C", reference_column(AxisId::X, "nut_temp_C", None)),
+        ("room °C", servosight::signal::channel::AMBIENT.to_string()),
+        (
+            "S elong. µm",
+            reference_column(AxisId::S, "elongation_um", None),
+        ),
+    ];
+    let columns: Vec<(&str, &[f64])> = wanted
+        .iter()
+        .filter_map(|(label, name)| recording.try_column(name).map(|c| (*label, c)))
+        .collect();
+    let start_h: f64 = recording
+        .metadata_value("start_clock_h")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.0);
+    print!("{:>7}", "clock");
+    for (label, _) in &columns {
+        print!("  {label:>11}");
+    }
+    println!();
+    let hours = (recording.duration_s() / 3600.0).ceil() as usize;
+    for hour in 0..hours {
+        let (from, to) = (hour as f64 * 3600.0, (hour + 1) as f64 * 3600.0);
+        let rows: Vec<usize> = (0..time.len())
+            .filter(|&i| time[i] >= from && time[i] < to)
+            .collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let clock = start_h + hour as f64;
+        print!("{:>4}:00", clock as u32 % 24);
+        for (_, values) in &columns {
+            let mean = rows.iter().map(|&i| values[i]).sum::<f64>() / rows.len() as f64;
+            print!("  {mean:>11.2}");
+        }
+        println!();
+    }
+    if let Some(elongation) =
+        recording.try_column(&reference_column(AxisId::S, "elongation_um", None))
+    {
+        let (lo, hi) = elongation
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+                (l.min(v), h.max(v))
+            });
+        println!(
+            "spindle thermal elongation over the shift: {lo:.1} to {hi:.1} µm (range {:.1} µm)",
+            hi - lo
+        );
+    }
+    Ok(())
+}

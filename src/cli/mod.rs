@@ -9,11 +9,12 @@ use clap::{Parser, Subcommand};
 
 mod audit;
 mod compensate;
-mod inspect;
+pub mod inspect;
 mod record;
 mod register_map;
 mod serial_args;
 mod sim_controller;
+mod simulate;
 
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
 #[derive(Debug, Parser)]
@@ -25,6 +26,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run the physics twin and write a recording (CSV v1).
+    Simulate(simulate::Args),
     /// Summarise a recording: columns, rate, duration, min/max/mean, gaps. Fails on bad input.
     Inspect(inspect::Args),
     /// Print the Modbus register map (JSON, or the Markdown tables of docs/register-map.md).
@@ -43,16 +46,14 @@ enum Command {
 pub fn run() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Some(Command::Simulate(args)) => simulate::run(args),
         Some(Command::Inspect(args)) => inspect::run(args),
         Some(Command::RegisterMap(args)) => register_map::run(args),
         Some(Command::Record(args)) => record::run(args),
         Some(Command::Compensate(args)) => compensate::run(args),
         Some(Command::Audit(args)) => audit::run(args),
         Some(Command::SimController(args)) => sim_controller::run(args),
-        None => {
-            use clap::CommandFactory;
-            Cli::command().print_help().map_err(anyhow::Error::from)
-        }
+        None => simulate::run_default_day(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

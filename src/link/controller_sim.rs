@@ -386,3 +386,124 @@ mod tests {
         assert_eq!(map::decode_sample(&second).unwrap().sequence, 2);
     }
 }
+
+/// Serves the physics twin in real time (or faster): the sample at the elapsed time, with the
+/// X backlash compensation the controller applied fed back into the twin.
+///
+/// The twin models the spindle `S` and the feed axis `X`. The map also publishes `Z`; this
+/// source reports it as an axis at rest (no motion, no torque or current, stator at room
+/// temperature) and says so in [`TwinSource::AT_REST_AXES`], rather than inventing a model of
+/// an axis the twin does not have. The spindle runs in speed control and has no position
+/// command; its `S.command_deg` is published equal to `S.position_deg` (no following error).
+pub struct TwinSource {
+    twin: crate::sim::Twin,
+    /// For each map column (without `time_s`): where the twin has it, or how to stand in.
+    columns: Vec<TwinColumn>,
+    speed: f64,
+    row: Vec<f64>,
+    last: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum TwinColumn {
+    Twin(usize),
+    /// A command the twin does not produce: the position it would command.
+    CommandFollows(usize),
+    AtRest,
+    AtRoomTemperature,
+}
+
+impl TwinSource {
+    /// Axes of the map the twin does not model, published at rest.
+    pub const AT_REST_AXES: [crate::signal::AxisId; 1] = [crate::signal::AxisId::Z];
+
+    /// Wraps a twin; `speed` is simulated seconds per wall-clock second.
+    pub fn new(
+        twin: crate::sim::Twin,
+        speed: f64,
+    ) -> Result<TwinSource, crate::signal::RecordingError> {
+        use crate::signal::{Channel, Quantity};
+        let schema = twin.schema().clone();
+        let mut columns = Vec::new();
+        for name in &map::sample_columns()[1..] {
+            let column = match schema.index_of(name) {
+                Some(index) => TwinColumn::Twin(index),
+                None => match Channel::parse(name) {
+                    Channel::Servo { axis, quantity } if Self::AT_REST_AXES.contains(&axis) => {
+                        if quantity == Quantity::StatorTemp {
+                            TwinColumn::AtRoomTemperature
+                        } else {
+                            TwinColumn::AtRest
+                        }
+                    }
+                    Channel::Servo {
+                        axis,
+                        quantity: Quantity::Command,
+                    } if schema
+                        .index_of(&crate::signal::axis_column(axis, Quantity::Position))
+                        .is_some() =>
+                    {
+                        let position = crate::signal::axis_column(axis, Quantity::Position);
+                        TwinColumn::CommandFollows(schema.index_of(&position).unwrap_or(0))
+                    }
+                    _ => {
+                        return Err(crate::signal::RecordingError::MissingColumn {
+                            source_name: "twin".into(),
+                            name: name.clone(),
+                            needed_for: Some("serving the register map".into()),
+                        });
+                    }
+                },
+            };
+            columns.push(column);
+        }
+        if schema.index_of(crate::signal::channel::AMBIENT).is_none() {
+            return Err(crate::signal::RecordingError::MissingColumn {
+                source_name: "twin".into(),
+                name: crate::signal::channel::AMBIENT.into(),
+                needed_for: Some("the stator temperature of an axis at rest".into()),
+            });
+        }
+        Ok(TwinSource {
+            twin,
+            columns,
+            speed: speed.max(1e-6),
+            row: Vec::new(),
+            last: None,
+        })
+    }
+}
+
+impl SampleSource for TwinSource {
+    fn sample(&mut self, elapsed: Duration) -> Option<Vec<f64>> {
+        let target_s = elapsed.as_secs_f64() * self.speed;
+        while self.last.is_none() || self.twin.time_s() <= target_s {
+            if !self.twin.next_row(&mut self.row) {
+                break;
+            }
+            self.last = Some(self.row.clone());
+        }
+        let row = self.last.as_ref()?;
+        let ambient = row[self
+            .twin
+            .schema()
+            .index_of(crate::signal::channel::AMBIENT)?];
+        Some(
+            self.columns
+                .iter()
+                .map(|column| match column {
+                    TwinColumn::Twin(index) | TwinColumn::CommandFollows(index) => row[*index],
+                    TwinColumn::AtRest => 0.0,
+                    TwinColumn::AtRoomTemperature => ambient,
+                })
+                .collect(),
+        )
+    }
+
+    fn compensation_applied(&mut self, table: &CompensationValues) {
+        use crate::compensation::CompensationId;
+        if let Some(backlash) = table.get(CompensationId::Backlash(crate::signal::AxisId::X)) {
+            self.twin.set_backlash_compensation_um(backlash);
+        }
+    }
+}

@@ -14,6 +14,9 @@ pub const TIME: &str = "time_s";
 pub const AMBIENT: &str = "ambient_C";
 /// Coolant (or oil chiller) state, 0 = off, 1 = on.
 pub const COOLANT: &str = "coolant_on";
+/// The programmed depth of cut while the tool is cutting, mm (0 otherwise). Not a servo signal:
+/// the controller knows it from the NC program; depth-of-cut recommendations need it.
+pub const CUT_DEPTH: &str = "cut_depth_mm";
 /// Prefix of reference-instrument columns, used for calibration and validation only.
 pub const REFERENCE_PREFIX: &str = "ref.";
 

@@ -1,0 +1,208 @@
+//! `servosight simulate` and `servosight inspect`, driven as a user would.
+
+use servosight::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH, TIME};
+use servosight::signal::{AxisId, Quantity, axis_column, read_recording, reference_column};
+
+use crate::common::{arg, servosight, stderr, stdout};
+
+#[test]
+fn a_two_hour_production_run_writes_every_standard_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.csv");
+    let run = servosight(&[
+        "simulate",
+        "--scenario",
+        "production",
+        "--hours",
+        "2",
+        "--seed",
+        "3",
+        "-o",
+        arg(&out),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let rec = read_recording(&out).unwrap();
+    assert_eq!(rec.len(), 7201);
+    let mut expected = vec![
+        TIME.to_string(),
+        AMBIENT.into(),
+        COOLANT.into(),
+        CUT_DEPTH.into(),
+    ];
+    for axis in [AxisId::S, AxisId::X] {
+        for q in [
+            Quantity::Speed,
+            Quantity::Torque,
+            Quantity::Current,
+            Quantity::Load,
+            Quantity::StatorTemp,
+            Quantity::Position,
+        ] {
+            expected.push(axis_column(axis, q));
+        }
+    }
+    expected.push(axis_column(AxisId::X, Quantity::Command));
+    expected.push(reference_column(AxisId::S, "elongation_um", None));
+    for q in [
+        "motor_flange_temp_C",
+        "front_bearing_temp_C",
+        "back_bearing_temp_C",
+        "nut_temp_C",
+        "backlash_um",
+    ] {
+        expected.push(reference_column(AxisId::X, q, None));
+    }
+    for k in 1..=5 {
+        expected.push(reference_column(AxisId::X, "straightness_h_um", Some(k)));
+        expected.push(reference_column(AxisId::X, "straightness_v_um", Some(k)));
+    }
+    for name in &expected {
+        assert!(rec.try_column(name).is_some(), "missing column {name}");
+    }
+    assert_eq!(rec.metadata_value("scenario"), Some("production"));
+    assert_eq!(rec.metadata_value("seed"), Some("3"));
+
+    let inspect = servosight(&["inspect", arg(&out)]);
+    assert!(inspect.status.success(), "{}", stderr(&inspect));
+    let text = stdout(&inspect);
+    assert!(
+        text.contains("7201 rows") && text.contains("sample rate 1.0000 Hz"),
+        "{text}"
+    );
+}
+
+#[test]
+fn the_same_seed_writes_the_same_file_and_without_changes_the_physics() {
+    let dir = tempfile::tempdir().unwrap();
+    let paths: Vec<_> = ["a.csv", "b.csv", "c.csv"]
+        .iter()
+        .map(|n| dir.path().join(n))
+        .collect();
+    for (path, extra) in paths
+        .iter()
+        .zip([&[][..], &[][..], &["--without", "copper_loss"][..]])
+    {
+        let mut args = vec![
+            "simulate",
+            "--scenario",
+            "warmup",
+            "--hours",
+            "0.5",
+            "--seed",
+            "11",
+            "-o",
+            arg(path),
+        ];
+        args.extend_from_slice(extra);
+        let run = servosight(&args);
+        assert!(run.status.success(), "{}", stderr(&run));
+    }
+    let read = |p: &std::path::Path| std::fs::read(p).unwrap();
+    assert_eq!(read(&paths[0]), read(&paths[1]));
+    let with = read_recording(&paths[0]).unwrap();
+    let without = read_recording(&paths[2]).unwrap();
+    let last =
+        |r: &servosight::signal::Recording| *r.column("S.stator_temp_C").unwrap().last().unwrap();
+    assert!(
+        last(&with) > last(&without) + 1.0,
+        "copper loss heats the stator"
+    );
+    assert_eq!(without.metadata_value("effects_off"), Some("copper_loss"));
+}
+
+#[test]
+fn inspect_names_the_line_of_a_non_numeric_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.csv");
+    std::fs::write(
+        &path,
+        "# machine: test\ntime_s,X.speed_rpm\n0,1\n1,2\n2,fast\n3,4\n",
+    )
+    .unwrap();
+    let run = servosight(&["inspect", arg(&path)]);
+    assert!(!run.status.success());
+    let err = stderr(&run);
+    assert!(
+        err.contains("line 5")
+            && err.contains("`fast` is not a number")
+            && err.contains("X.speed_rpm"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "one clear line: {err}");
+}
+
+#[test]
+fn inspect_rejects_time_going_backwards_naming_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("back.csv");
+    std::fs::write(&path, "time_s,ambient_C\n0,20\n1,20\n0.5,20\n").unwrap();
+    let run = servosight(&["inspect", arg(&path)]);
+    assert!(!run.status.success());
+    let err = stderr(&run);
+    assert!(
+        err.contains("line 4") && err.contains("time goes backwards"),
+        "{err}"
+    );
+}
+
+#[test]
+fn inspect_reports_missing_files_and_gaps() {
+    let run = servosight(&["inspect", "/nonexistent/day.csv"]);
+    assert!(!run.status.success());
+    assert!(stderr(&run).contains("/nonexistent/day.csv"));
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gap.csv");
+    std::fs::write(&path, "time_s,a\n0,1\n1,1\n2,1\n12,1\n13,1\n").unwrap();
+    let run = servosight(&["inspect", arg(&path), "--json", "-"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+    assert_eq!(report["gaps"][0]["after_s"], 2.0);
+    assert_eq!(report["gaps"][0]["length_s"], 10.0);
+}
+
+#[test]
+fn simulate_refuses_unknown_effects_and_parameters_with_one_clear_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.csv");
+    let run = servosight(&[
+        "simulate",
+        "--scenario",
+        "doe",
+        "--without",
+        "gravity",
+        "-o",
+        arg(&out),
+    ]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("unknown effect `gravity`"),
+        "{}",
+        stderr(&run)
+    );
+    let run = servosight(&[
+        "simulate",
+        "--scenario",
+        "doe",
+        "--set",
+        "x_axis.lash=3",
+        "-o",
+        arg(&out),
+    ]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("no such parameter"),
+        "{}",
+        stderr(&run)
+    );
+    assert!(!out.exists(), "nothing written on bad input");
+}
+
+#[test]
+fn every_subcommand_has_useful_help() {
+    for sub in ["simulate", "inspect"] {
+        let run = servosight(&[sub, "--help"]);
+        assert!(run.status.success());
+        assert!(stdout(&run).len() > 200, "{sub} --help is too thin");
+    }
+}
