@@ -124,3 +124,51 @@ fn a_replay_has_no_controller_to_write_to() {
     let missing = ControllerLink::replay(&dir.path().join("nope.csv"), ReplayOptions::default());
     assert!(matches!(missing, Err(LinkError::Recording(_))));
 }
+
+#[test]
+fn the_embedded_twin_streams_and_takes_compensation() {
+    use servosight::compensation::{
+        self, AuditLog, CompensationId, CompensationLimits, Credentials, Proposal, Request, Role,
+    };
+    use servosight::signal::AxisId;
+    let config =
+        servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, Some(1.0), 7);
+    let mut link = ControllerLink::twin(
+        config,
+        ReplaySpeed::Factor(600.0),
+        Duration::from_millis(500),
+    )
+    .unwrap();
+    let frames = collect(&mut link, |f| f.len() >= 50, Duration::from_secs(5));
+    assert!(frames.len() >= 50);
+    assert!(link.schema().index_of("X.position_mm").is_some());
+    let step = frames[1].row[0] - frames[0].row[0];
+    assert!(
+        (step - 1.0).abs() < 1e-9,
+        "1 Hz twin, got a step of {step} s"
+    );
+    let mut users = Credentials::default();
+    users.set_user("maria", Role::Approver, "pw").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut audit = AuditLog::open(&dir.path().join("audit.jsonl")).unwrap();
+    let backlash = CompensationId::Backlash(AxisId::X);
+    let approved = Request::new(
+        Proposal {
+            changes: [(backlash, 7.0)].into_iter().collect(),
+            why: "twin".into(),
+            evidence: "test".into(),
+            action: "adjust".into(),
+        },
+        "otto",
+    )
+    .unwrap()
+    .approve(&users, "maria", "pw")
+    .unwrap();
+    let report =
+        compensation::apply(&link, &CompensationLimits::default(), &mut audit, approved).unwrap();
+    assert_eq!(report.steps, 2);
+    assert_eq!(
+        link.read_compensation().wait().unwrap().get(backlash),
+        Some(7.0)
+    );
+}

@@ -8,14 +8,16 @@
 //! source could not get from the controller are visible in the controller's sequence counter and
 //! counted in [`LinkStats`].
 //!
-//! Sources: [`replay`] (a CSV v1 file at 1×, N× or as fast as possible, with pause and seek) and
-//! [`modbus`] (a controller over Modbus RTU on a serial line, map in [`register_map`]).
+//! Sources: [`replay`] (a CSV v1 file at 1×, N× or as fast as possible, with pause and seek),
+//! [`twin_source`] (the embedded physics twin) and [`modbus`] (a controller over Modbus RTU on
+//! a serial line, map in [`register_map`]). [`controller_sim`] is the other end of that line.
 
 pub mod controller_sim;
 pub mod modbus;
 pub mod recorder;
 pub mod register_map;
 pub mod replay;
+pub mod twin_source;
 
 use std::time::{Duration, Instant, SystemTime};
 
