@@ -7,7 +7,8 @@
 //!
 //! - [`signal`]: channel names and units, the columnar [`signal::Recording`], the CSV v1 format.
 //! - [`sim`]: the lumped-parameter physics twin that stands in for the paper's FEA database.
-//! - [`link`]: frame sources (replay, Modbus RTU controller), the register map, the recorder.
+//! - [`link`]: frame sources (replay, embedded twin, Modbus RTU controller), the register map,
+//!   the recorder, and the controller end of the map (`sim-controller`).
 //! - [`compensation`]: approved, bounded, verified and audited compensation writes.
 
 pub mod compensation;
