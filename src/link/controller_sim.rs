@@ -426,34 +426,31 @@ impl TwinSource {
         let schema = twin.schema().clone();
         let mut columns = Vec::new();
         for name in &map::sample_columns()[1..] {
-            let column = match schema.index_of(name) {
-                Some(index) => TwinColumn::Twin(index),
-                None => match Channel::parse(name) {
-                    Channel::Servo { axis, quantity } if Self::AT_REST_AXES.contains(&axis) => {
-                        if quantity == Quantity::StatorTemp {
-                            TwinColumn::AtRoomTemperature
-                        } else {
-                            TwinColumn::AtRest
-                        }
+            let missing = || crate::signal::RecordingError::MissingColumn {
+                source_name: "twin".into(),
+                name: name.clone(),
+                needed_for: Some("serving the register map".into()),
+            };
+            let column = match (schema.index_of(name), Channel::parse(name)) {
+                (Some(index), _) => TwinColumn::Twin(index),
+                (None, Channel::Servo { axis, quantity }) if Self::AT_REST_AXES.contains(&axis) => {
+                    if quantity == Quantity::StatorTemp {
+                        TwinColumn::AtRoomTemperature
+                    } else {
+                        TwinColumn::AtRest
                     }
+                }
+                (
+                    None,
                     Channel::Servo {
                         axis,
                         quantity: Quantity::Command,
-                    } if schema
-                        .index_of(&crate::signal::axis_column(axis, Quantity::Position))
-                        .is_some() =>
-                    {
-                        let position = crate::signal::axis_column(axis, Quantity::Position);
-                        TwinColumn::CommandFollows(schema.index_of(&position).unwrap_or(0))
-                    }
-                    _ => {
-                        return Err(crate::signal::RecordingError::MissingColumn {
-                            source_name: "twin".into(),
-                            name: name.clone(),
-                            needed_for: Some("serving the register map".into()),
-                        });
-                    }
-                },
+                    },
+                ) => schema
+                    .index_of(&crate::signal::axis_column(axis, Quantity::Position))
+                    .map(TwinColumn::CommandFollows)
+                    .ok_or_else(missing)?,
+                (None, _) => return Err(missing()),
             };
             columns.push(column);
         }
