@@ -9,7 +9,12 @@
 //! - [`fit`]: regression (OLS by QR with statsmodels' statistics, terms language, sensitivity,
 //!   selection, recursive least squares) that turns a database into estimator coefficients.
 //! - [`sim`]: the lumped-parameter physics twin that stands in for the paper's FEA database.
+//! - [`link`]: frame sources (replay, embedded twin, Modbus RTU controller), the register map,
+//!   the recorder, and the controller end of the map (`sim-controller`).
+//! - [`compensation`]: approved, bounded, verified and audited compensation writes.
 
+pub mod compensation;
 pub mod fit;
+pub mod link;
 pub mod signal;
 pub mod sim;
