@@ -11,9 +11,14 @@
 //! - [`estimators`]: the paper's estimators (Eqs. 7–15), calibration and accuracy.
 //! - [`profile`]: the machine profile: geometry, ratings, limits, fitted coefficients.
 //! - [`sim`]: the lumped-parameter physics twin that stands in for the paper's FEA database.
+//! - [`link`]: frame sources (replay, embedded twin, Modbus RTU controller), the register map,
+//!   the recorder, and the controller end of the map (`sim-controller`).
+//! - [`compensation`]: approved, bounded, verified and audited compensation writes.
 
+pub mod compensation;
 pub mod estimators;
 pub mod fit;
+pub mod link;
 pub mod profile;
 pub mod signal;
 pub mod sim;

@@ -266,10 +266,22 @@ impl MachineProfile {
         let s = &machine.spindle;
         let nodes = x.straightness_nodes;
         let feed_limits = AxisLimits {
-            motor_temp_C: Threshold { warning: 60.0, fault: 80.0 },
-            bearing_temp_C: Threshold { warning: 45.0, fault: 60.0 },
-            nut_temp_C: Threshold { warning: 45.0, fault: 60.0 },
-            abnormality: Threshold { warning: 4.0, fault: 8.0 },
+            motor_temp_C: Threshold {
+                warning: 60.0,
+                fault: 80.0,
+            },
+            bearing_temp_C: Threshold {
+                warning: 45.0,
+                fault: 60.0,
+            },
+            nut_temp_C: Threshold {
+                warning: 45.0,
+                fault: 60.0,
+            },
+            abnormality: Threshold {
+                warning: 4.0,
+                fault: 8.0,
+            },
             preload_loss_fraction: 0.25,
             friction_rise_fraction: 0.25,
             fingerprint_drift_fraction: 0.2,
@@ -312,9 +324,18 @@ impl MachineProfile {
                 nut: None,
                 lubricant: lubricant(&s.lubricant),
                 limits: AxisLimits {
-                    motor_temp_C: Threshold { warning: 90.0, fault: 120.0 },
-                    bearing_temp_C: Threshold { warning: 55.0, fault: 70.0 },
-                    elongation_um: Some(Threshold { warning: 40.0, fault: 60.0 }),
+                    motor_temp_C: Threshold {
+                        warning: 90.0,
+                        fault: 120.0,
+                    },
+                    bearing_temp_C: Threshold {
+                        warning: 55.0,
+                        fault: 70.0,
+                    },
+                    elongation_um: Some(Threshold {
+                        warning: 40.0,
+                        fault: 60.0,
+                    }),
                     ..feed_limits
                 },
             },
@@ -342,7 +363,10 @@ impl MachineProfile {
             if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(invalid(field, format!("must be a positive number, is {value}")))
+                Err(invalid(
+                    field,
+                    format!("must be a positive number, is {value}"),
+                ))
             }
         };
         if self.axes.is_empty() {
@@ -353,17 +377,35 @@ impl MachineProfile {
             positive(f("motor.rated_torque_Nm"), axis.motor.rated_torque_Nm)?;
             positive(f("motor.rated_power_W"), axis.motor.rated_power_W)?;
             positive(f("motor.max_speed_rpm"), axis.motor.max_speed_rpm)?;
-            positive(f("motor.torque_constant_Nm_per_A"), axis.motor.torque_constant_Nm_per_A)?;
-            for (name, b) in [("front_bearing", &axis.front_bearing), ("back_bearing", &axis.back_bearing)] {
-                positive(f(&format!("{name}.dynamic_load_rating_N")), b.dynamic_load_rating_N)?;
-                positive(f(&format!("{name}.static_load_rating_N")), b.static_load_rating_N)?;
+            positive(
+                f("motor.torque_constant_Nm_per_A"),
+                axis.motor.torque_constant_Nm_per_A,
+            )?;
+            for (name, b) in [
+                ("front_bearing", &axis.front_bearing),
+                ("back_bearing", &axis.back_bearing),
+            ] {
+                positive(
+                    f(&format!("{name}.dynamic_load_rating_N")),
+                    b.dynamic_load_rating_N,
+                )?;
+                positive(
+                    f(&format!("{name}.static_load_rating_N")),
+                    b.static_load_rating_N,
+                )?;
                 positive(f(&format!("{name}.pitch_diameter_mm")), b.pitch_diameter_mm)?;
                 positive(f(&format!("{name}.f1")), b.f1)?;
                 if !(b.preload_N.is_finite() && b.preload_N >= 0.0) {
-                    return Err(invalid(f(&format!("{name}.preload_N")), "must be zero or positive".into()));
+                    return Err(invalid(
+                        f(&format!("{name}.preload_N")),
+                        "must be zero or positive".into(),
+                    ));
                 }
             }
-            positive(f("lubricant.viscosity_40C_cSt"), axis.lubricant.viscosity_40C_cSt)?;
+            positive(
+                f("lubricant.viscosity_40C_cSt"),
+                axis.lubricant.viscosity_40C_cSt,
+            )?;
             for (name, t) in [
                 ("motor_temp_C", axis.limits.motor_temp_C),
                 ("bearing_temp_C", axis.limits.bearing_temp_C),
@@ -390,7 +432,7 @@ impl MachineProfile {
                         return Err(invalid(f("screw.efficiency"), "must be in (0, 1]".into()));
                     }
                     if screw.node_positions_mm.len() < 2
-                        || screw.node_positions_mm.windows(2).any(|w| !(w[1] > w[0]))
+                        || !screw.node_positions_mm.windows(2).all(|w| w[1] > w[0])
                     {
                         return Err(invalid(
                             f("screw.node_positions_mm"),
@@ -410,9 +452,15 @@ impl MachineProfile {
         }
         let d = &self.depth_of_cut;
         if !(d.margin > 0.0 && d.margin <= 1.0) {
-            return Err(invalid("depth_of_cut.margin".into(), "must be in (0, 1]".into()));
+            return Err(invalid(
+                "depth_of_cut.margin".into(),
+                "must be in (0, 1]".into(),
+            ));
         }
-        positive("depth_of_cut.bearing_static_safety".into(), d.bearing_static_safety)?;
+        positive(
+            "depth_of_cut.bearing_static_safety".into(),
+            d.bearing_static_safety,
+        )?;
         if let Some(calibration) = &self.calibration {
             calibration
                 .validate()
@@ -442,17 +490,31 @@ mod tests {
     #[test]
     fn invalid_values_are_named() {
         let mut profile = MachineProfile::twin_default();
-        profile.axes.get_mut(&AxisId::X).unwrap().limits.bearing_temp_C = Threshold { warning: 70.0, fault: 60.0 };
+        profile
+            .axes
+            .get_mut(&AxisId::X)
+            .unwrap()
+            .limits
+            .bearing_temp_C = Threshold {
+            warning: 70.0,
+            fault: 60.0,
+        };
         let text = toml::to_string_pretty(&profile).unwrap();
-        let err = MachineProfile::from_toml(&text, "p.toml").unwrap_err().to_string();
+        let err = MachineProfile::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("axes.X.limits.bearing_temp_C"), "{err}");
 
-        let err = MachineProfile::from_toml("name = 3", "p.toml").unwrap_err().to_string();
+        let err = MachineProfile::from_toml("name = 3", "p.toml")
+            .unwrap_err()
+            .to_string();
         assert!(err.starts_with("p.toml:"), "{err}");
         let text = toml::to_string_pretty(&MachineProfile::twin_default())
             .unwrap()
             .replace("lead_mm = 10.0", "lead_mm = -10.0");
-        let err = MachineProfile::from_toml(&text, "p.toml").unwrap_err().to_string();
+        let err = MachineProfile::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("axes.X.screw.lead_mm"), "{err}");
     }
 }

@@ -206,3 +206,39 @@ fn every_subcommand_has_useful_help() {
         assert!(stdout(&run).len() > 200, "{sub} --help is too thin");
     }
 }
+
+#[test]
+fn inspect_into_a_closed_pipe_ends_quietly() {
+    use std::io::Read;
+    use std::process::{Command, Stdio};
+    // Without the SIGPIPE fix in main.rs this test sees `println!` panic (checked by hand).
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.csv");
+    let run = servosight(&[
+        "simulate",
+        "--scenario",
+        "warmup",
+        "--hours",
+        "0.2",
+        "-o",
+        arg(&out),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_servosight"))
+        .args(["inspect", arg(&out)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the reading end before the report is written, as `… | head -c0` would.
+    drop(child.stdout.take());
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    child.wait().unwrap();
+    assert!(!err.contains("panicked"), "{err}");
+}

@@ -2,5 +2,7 @@
 
 mod common;
 mod fit;
+mod link_replay;
+mod modbus_peer;
 mod recording_format;
 mod simulate_cli;

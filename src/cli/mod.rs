@@ -7,8 +7,16 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod audit;
+mod calibrate;
+mod compensate;
+mod estimate;
 mod fit;
 pub mod inspect;
+mod record;
+mod register_map;
+mod serial_args;
+mod sim_controller;
 mod simulate;
 
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
@@ -27,6 +35,20 @@ enum Command {
     Inspect(inspect::Args),
     /// Multiple regression with F-test, R², t/p/CI, sensitivity and optional term selection.
     Fit(fit::Args),
+    /// Fit every estimator from a simulation database and a few experiments (Eqs. 7–15).
+    Calibrate(calibrate::Args),
+    /// Run every estimator over a recording; score against reference columns (Table 3).
+    Estimate(estimate::Args),
+    /// Print the Modbus register map (JSON, or the Markdown tables of docs/register-map.md).
+    RegisterMap(register_map::Args),
+    /// Record every frame a controller sends (Modbus RTU) to a CSV v1 file.
+    Record(record::Args),
+    /// Propose, apply (approved, bounded, verified, audited) and roll back compensation values.
+    Compensate(compensate::Args),
+    /// Check the compensation audit log.
+    Audit(audit::Args),
+    /// Serve a recording as a Modbus RTU controller speaking the register map.
+    SimController(sim_controller::Args),
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -36,6 +58,13 @@ pub fn run() -> ExitCode {
         Some(Command::Simulate(args)) => simulate::run(args),
         Some(Command::Inspect(args)) => inspect::run(args),
         Some(Command::Fit(args)) => fit::run(args),
+        Some(Command::Calibrate(args)) => calibrate::run(args),
+        Some(Command::Estimate(args)) => estimate::run(args),
+        Some(Command::RegisterMap(args)) => register_map::run(args),
+        Some(Command::Record(args)) => record::run(args),
+        Some(Command::Compensate(args)) => compensate::run(args),
+        Some(Command::Audit(args)) => audit::run(args),
+        Some(Command::SimController(args)) => sim_controller::run(args),
         None => simulate::run_default_day(),
     };
     match result {

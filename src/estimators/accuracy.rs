@@ -16,11 +16,17 @@ pub struct EstimateSeries {
 }
 
 /// Runs the profile's pipeline over every row of `recording`.
-pub fn run(profile: &MachineProfile, recording: &Recording) -> Result<EstimateSeries, PipelineError> {
+pub fn run(
+    profile: &MachineProfile,
+    recording: &Recording,
+) -> Result<EstimateSeries, PipelineError> {
     let mut pipeline = EstimatorPipeline::new(profile, recording.schema())?;
     let outputs = pipeline.outputs();
     let mut values = vec![Vec::with_capacity(recording.len()); outputs.len()];
-    let (mut row, mut out) = (Vec::with_capacity(recording.schema().len()), Vec::with_capacity(outputs.len()));
+    let (mut row, mut out) = (
+        Vec::with_capacity(recording.schema().len()),
+        Vec::with_capacity(outputs.len()),
+    );
     for i in 0..recording.len() {
         recording.row_into(i, &mut row);
         pipeline.update(&row);

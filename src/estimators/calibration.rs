@@ -11,6 +11,7 @@
 //! Experiments correct the database the way the paper does it: each model's predictions on the
 //! experiment recordings are regressed on the measured values, y = a + b·ŷ; when that correction
 //! is significant (F-test, p < 0.01) it is folded into the model's coefficients.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use std::collections::BTreeMap;
 
@@ -88,6 +89,11 @@ pub struct ModelReport {
     pub f_p_value: f64,
     /// Time-blocked cross-validated R².
     pub cv_r2: f64,
+    /// How the model form (time constants, optional terms) was chosen: on the `experiments`
+    /// or by `blocked_cv` on the database.
+    pub selected_by: &'static str,
+    /// The R² that chose it (on the experiments, or cross-validated).
+    pub selection_r2: f64,
     /// The correction the experiments made, if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub experiment_correction: Option<ExperimentCorrection>,
@@ -149,30 +155,30 @@ pub fn calibrate(
                         &format!("{axis}.motor_flange_temp"),
                         "T_flange",
                         database,
+                        experiments,
                         &target,
-                        |_, r| {
-                            let mut base = vec![("stator".to_string(), r.column_for(&stator, "the motor flange model")?.to_vec())];
-                            let with_room = if has_ambient {
-                                let mut v = base.clone();
-                                v.push(("ambient".to_string(), r.column(AMBIENT)?.to_vec()));
-                                Some(v)
-                            } else {
-                                None
-                            };
-                            Ok(vec![Some(std::mem::take(&mut base)), with_room].into_iter().flatten().collect())
+                        &|_, _, r| {
+                            let base = vec![(
+                                "stator".to_string(),
+                                r.column_for(&stator, "the motor flange model")?.to_vec(),
+                            )];
+                            with_room_variant(base, r, has_ambient)
                         },
                     )?;
                     models.motor_flange = Some(fitted.model.clone());
                     report.models.push(fitted.report);
                 }
-                if let Some((nut_bearing, back_front, reports)) = fit_torque_ratios(axis, database)? {
+                if let Some((nut_bearing, back_front, reports)) = fit_torque_ratios(axis, database)?
+                {
                     models.nut_bearing_ratio = Some(nut_bearing);
                     models.back_front_ratio = Some(back_front);
                     report.models.extend(reports);
                 }
             }
             AxisKind::Spindle => {
-                if let Some((model, model_report)) = fit_elongation(axis, database, has_ambient)? {
+                if let Some((model, model_report)) =
+                    fit_elongation(axis, database, experiments, has_ambient)?
+                {
                     models.elongation = Some(model);
                     report.models.push(model_report);
                 }
@@ -186,14 +192,17 @@ pub fn calibrate(
         if axis_profile.kind != AxisKind::Feed {
             continue;
         }
-        let Some(models) = calibration.axes.get(&axis) else { continue };
+        let Some(models) = calibration.axes.get(&axis) else {
+            continue;
+        };
         let (Some(nb), Some(bf)) = (&models.nut_bearing_ratio, &models.back_front_ratio) else {
             continue;
         };
-        let split = TorqueSplitEstimator::new(nb, bf).map_err(|message| CalibrationError::NoData {
-            estimate: format!("{axis}.torque_split"),
-            message,
-        })?;
+        let split =
+            TorqueSplitEstimator::new(nb, bf).map_err(|message| CalibrationError::NoData {
+                estimate: format!("{axis}.torque_split"),
+                message,
+            })?;
         let mut fitted = Vec::new();
         for (component, label) in [
             (Component::FrontBearing, "front_bearing_temp"),
@@ -204,7 +213,20 @@ pub fn calibrate(
             if !database.iter().all(|r| r.try_column(&target).is_some()) {
                 continue;
             }
-            let (model, model_report) = fit_heat_model(axis, label, component, &split, database, &target, has_ambient)?;
+            let lead_mm = axis_profile.screw.as_ref().map_or(1.0, |s| s.lead_mm);
+            let (model, model_report) = fit_heat_model(
+                HeatFit {
+                    axis,
+                    label,
+                    component,
+                    split: &split,
+                    lead_mm,
+                    target: &target,
+                    has_ambient,
+                },
+                database,
+                experiments,
+            )?;
             fitted.push((component, model));
             report.models.push(model_report);
         }
@@ -217,40 +239,68 @@ pub fn calibrate(
             }
         }
     }
-    apply_experiments(profile, &mut calibration, &mut report, experiments, Stage::Components)?;
+    apply_experiments(
+        profile,
+        &mut calibration,
+        &mut report,
+        experiments,
+        Stage::Components,
+    )?;
 
     // Stage 3: straightness from the estimated temperatures.
     for (&axis, axis_profile) in &profile.axes {
-        let Some(screw) = &axis_profile.screw else { continue };
+        let Some(screw) = &axis_profile.screw else {
+            continue;
+        };
         let nodes = screw.node_positions_mm.len();
         let first_ref = reference_column(axis, "straightness_h_um", Some(1));
         if !database.iter().all(|r| r.try_column(&first_ref).is_some()) {
             continue;
         }
-        let mut estimated = Vec::with_capacity(database.len());
-        for recording in database {
-            estimated.push(estimated_temperatures(profile, &calibration, recording, axis)?);
-        }
+        let estimate_all = |recordings: &[Recording]| {
+            recordings
+                .iter()
+                .map(|r| estimated_temperatures(profile, &calibration, r, axis))
+                .collect::<Result<Vec<_>, _>>()
+        };
+        let estimated = estimate_all(database)?;
+        let estimated_experiments = estimate_all(experiments)?;
         let (mut h, mut v) = (Vec::new(), Vec::new());
         for k in 1..=nodes {
             for (hv, out) in [("h", &mut h), ("v", &mut v)] {
                 let target = reference_column(axis, &format!("straightness_{hv}_um"), Some(k));
                 let label = format!("{axis}.straightness_{hv}#{k}");
-                let fitted = fit_best(&label, &format!("δ_{}{k}", hv.to_uppercase()), database, &target, |index, r| {
-                    let temps = &estimated[index];
-                    let mut columns = Vec::new();
-                    for (name, values) in [("front", &temps.front), ("back", &temps.back), ("motor", &temps.motor)] {
-                        columns.push((name.to_string(), values.clone()));
-                        columns.push((format!("{name}^2"), values.iter().map(|t| t * t).collect()));
-                        columns.push((format!("{name}^3"), values.iter().map(|t| t * t * t).collect()));
-                    }
-                    let mut candidates = vec![columns.clone()];
-                    if has_ambient {
-                        columns.push(("ambient".into(), r.column(AMBIENT)?.to_vec()));
-                        candidates.push(columns);
-                    }
-                    Ok(candidates)
-                })?;
+                let symbol = format!("δ_{}{k}", hv.to_uppercase());
+                let fitted = fit_best(
+                    &label,
+                    &symbol,
+                    database,
+                    experiments,
+                    &target,
+                    &|side, index, r| {
+                        let temps = match side {
+                            Side::Database => &estimated[index],
+                            Side::Experiment => &estimated_experiments[index],
+                        };
+                        let mut columns = Vec::new();
+                        for (name, values) in [
+                            ("front", &temps.front),
+                            ("back", &temps.back),
+                            ("motor", &temps.motor),
+                        ] {
+                            columns.push((name.to_string(), values.clone()));
+                            columns.push((
+                                format!("{name}^2"),
+                                values.iter().map(|t| t * t).collect(),
+                            ));
+                            columns.push((
+                                format!("{name}^3"),
+                                values.iter().map(|t| t * t * t).collect(),
+                            ));
+                        }
+                        with_room_variant(columns, r, has_ambient)
+                    },
+                )?;
                 out.push(fitted.model);
                 report.models.push(fitted.report);
             }
@@ -259,7 +309,13 @@ pub fn calibrate(
         models.straightness_h = h;
         models.straightness_v = v;
     }
-    apply_experiments(profile, &mut calibration, &mut report, experiments, Stage::Straightness)?;
+    apply_experiments(
+        profile,
+        &mut calibration,
+        &mut report,
+        experiments,
+        Stage::Straightness,
+    )?;
     Ok((calibration, report))
 }
 
@@ -283,39 +339,109 @@ struct Fitted {
     cv_r2: f64,
 }
 
-/// Fits each candidate column set on the stacked database and keeps the one with the best
-/// time-blocked cross-validated R². `candidates` builds, for one recording, the candidate
-/// column sets (same names and order for every recording).
+/// Which recordings a candidate-building closure is asked about.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Side {
+    Database,
+    Experiment,
+}
+
+/// Named regressor columns.
+type Columns = Vec<(String, Vec<f64>)>;
+
+/// Builds candidate column sets for one recording (same names and order for every recording).
+type Candidates<'a> =
+    dyn Fn(Side, usize, &Recording) -> Result<Vec<Columns>, CalibrationError> + 'a;
+
+/// Fits each candidate column set on the stacked database and keeps the one that predicts best
+/// where it matters: on the experiments (real data the database never saw) when they carry the
+/// target, otherwise by time-blocked cross-validation on the database.
 fn fit_best(
     estimate: &str,
     symbol: &str,
     database: &[Recording],
+    experiments: &[Recording],
     target: &str,
-    candidates: impl Fn(usize, &Recording) -> Result<Vec<Vec<(String, Vec<f64>)>>, CalibrationError>,
+    candidates: &Candidates<'_>,
 ) -> Result<Fitted, CalibrationError> {
     let mut per_recording = Vec::with_capacity(database.len());
     let mut y = Vec::new();
     for (index, recording) in database.iter().enumerate() {
-        per_recording.push(candidates(index, recording)?);
+        per_recording.push(candidates(Side::Database, index, recording)?);
         y.extend_from_slice(recording.column_for(target, estimate)?);
     }
-    let count = per_recording.first().map_or(0, Vec::len);
-    let mut best: Option<Fitted> = None;
-    for c in 0..count {
-        let columns = stack(&per_recording, c);
-        let fitted = fit_columns(estimate, symbol, target, y.clone(), columns)?;
-        if best.as_ref().is_none_or(|b| fitted.cv_r2 > b.cv_r2 + 1e-4) {
-            best = Some(fitted);
+    let mut per_experiment = Vec::new();
+    let mut y_experiment = Vec::new();
+    for (index, recording) in experiments.iter().enumerate() {
+        if let Some(values) = recording.try_column(target) {
+            per_experiment.push(candidates(Side::Experiment, index, recording)?);
+            y_experiment.extend_from_slice(values);
         }
     }
-    best.ok_or_else(|| CalibrationError::NoData {
-        estimate: estimate.to_string(),
-        message: "no candidate model".into(),
-    })
+    let count = per_recording.first().map_or(0, Vec::len);
+    let mut best: Option<(f64, Fitted)> = None;
+    for c in 0..count {
+        let columns = stack(&per_recording, c);
+        let mut fitted = fit_columns(estimate, symbol, target, y.clone(), columns)?;
+        let score = if y_experiment.len() >= MIN_EXPERIMENT_ROWS {
+            let columns = stack(&per_experiment, c);
+            let predicted = predict(&fitted.model.coefficients, &columns, y_experiment.len());
+            fitted.report.selected_by = "experiments";
+            r_squared(&y_experiment, &predicted)
+        } else {
+            fitted.cv_r2
+        };
+        fitted.report.selection_r2 = score;
+        if best.as_ref().is_none_or(|(b, _)| score > *b + 1e-4) {
+            best = Some((score, fitted));
+        }
+    }
+    best.map(|(_, f)| f)
+        .ok_or_else(|| CalibrationError::NoData {
+            estimate: estimate.to_string(),
+            message: "no candidate model".into(),
+        })
+}
+
+/// c₀ + Σ cᵢ·xᵢ for every row.
+fn predict(coefficients: &[f64], columns: &[(String, Vec<f64>)], rows: usize) -> Vec<f64> {
+    (0..rows)
+        .map(|i| {
+            coefficients[0]
+                + columns
+                    .iter()
+                    .zip(&coefficients[1..])
+                    .map(|((_, x), c)| c * x[i])
+                    .sum::<f64>()
+        })
+        .collect()
+}
+
+/// 1 − SSE/SST.
+fn r_squared(y: &[f64], predicted: &[f64]) -> f64 {
+    let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
+    let sse: f64 = y.iter().zip(predicted).map(|(a, b)| (a - b).powi(2)).sum();
+    let sst: f64 = y.iter().map(|a| (a - mean).powi(2)).sum();
+    if sst > 0.0 { 1.0 - sse / sst } else { f64::NAN }
+}
+
+/// The candidates `[base]` and, when the room temperature is recorded, `[base + ambient]`.
+fn with_room_variant(
+    base: Vec<(String, Vec<f64>)>,
+    recording: &Recording,
+    has_ambient: bool,
+) -> Result<Vec<Columns>, CalibrationError> {
+    let mut candidates = vec![base.clone()];
+    if has_ambient {
+        let mut with_room = base;
+        with_room.push(("ambient".to_string(), recording.column(AMBIENT)?.to_vec()));
+        candidates.push(with_room);
+    }
+    Ok(candidates)
 }
 
 /// Concatenates candidate `c` of every recording, column by column.
-fn stack(per_recording: &[Vec<Vec<(String, Vec<f64>)>>], c: usize) -> Vec<(String, Vec<f64>)> {
+fn stack(per_recording: &[Vec<Columns>], c: usize) -> Columns {
     let mut columns: Vec<(String, Vec<f64>)> = per_recording[0][c]
         .iter()
         .map(|(name, _)| (name.clone(), Vec::new()))
@@ -343,7 +469,9 @@ fn fit_columns(
     let fit = ols(&design).map_err(err)?;
     let folds = CV_FOLDS.min(design.n_rows() / 10).max(2);
     let gap = CV_GAP_ROWS.min(design.n_rows() / (4 * folds));
-    let cv_r2 = blocked_cross_validation(&design, folds, gap).map_err(err)?.r2;
+    let cv_r2 = blocked_cross_validation(&design, folds, gap)
+        .map_err(err)?
+        .r2;
     let model = linear_model(symbol, &fit);
     let report = ModelReport {
         estimate: estimate.to_string(),
@@ -353,15 +481,27 @@ fn fit_columns(
         f_statistic: fit.f_statistic,
         f_p_value: fit.f_p_value,
         cv_r2,
+        selected_by: "blocked_cv",
+        selection_r2: cv_r2,
         experiment_correction: None,
     };
-    Ok(Fitted { model, report, cv_r2 })
+    Ok(Fitted {
+        model,
+        report,
+        cv_r2,
+    })
 }
 
 fn linear_model(symbol: &str, fit: &OlsFit) -> LinearModel {
     let mut equation = format!("{symbol} =");
     for (i, c) in fit.coefficients.iter().enumerate() {
-        let sign = if c.estimate < 0.0 { "−" } else if i == 0 { "" } else { "+" };
+        let sign = if c.estimate < 0.0 {
+            "−"
+        } else if i == 0 {
+            ""
+        } else {
+            "+"
+        };
         let value = format!("{:.6e}", c.estimate.abs());
         if c.term == "const" {
             equation.push_str(&format!(" {sign}{value}"));
@@ -393,7 +533,10 @@ fn fit_torque_ratios(
         reference_column(axis, "back_bearing_torque_Nm", None),
         reference_column(axis, "nut_torque_Nm", None),
     ];
-    if !database.iter().all(|r| names.iter().all(|n| r.try_column(n).is_some())) {
+    if !database
+        .iter()
+        .all(|r| names.iter().all(|n| r.try_column(n).is_some()))
+    {
         return Ok(None);
     }
     let mut torque = Vec::new();
@@ -417,36 +560,77 @@ fn fit_torque_ratios(
     if torque.len() < 20 {
         return Err(CalibrationError::NoData {
             estimate: format!("{axis}.torque_split"),
-            message: format!("only {} moving samples with reference torques", torque.len()),
+            message: format!(
+                "only {} moving samples with reference torques",
+                torque.len()
+            ),
         });
     }
     let cubic = |t: &[f64]| {
         vec![
             ("torque".to_string(), t.to_vec()),
             ("torque^2".to_string(), t.iter().map(|v| v * v).collect()),
-            ("torque^3".to_string(), t.iter().map(|v| v * v * v).collect()),
+            (
+                "torque^3".to_string(),
+                t.iter().map(|v| v * v * v).collect(),
+            ),
         ]
     };
-    let nb = fit_columns(&format!("{axis}.nut_bearing_torque_ratio"), "r_BN", "r_BN", r_nb, cubic(&torque))?;
-    let bf = fit_columns(&format!("{axis}.back_front_torque_ratio"), "r_BF", "r_BF", r_bf, cubic(&torque))?;
+    let nb = fit_columns(
+        &format!("{axis}.nut_bearing_torque_ratio"),
+        "r_BN",
+        "r_BN",
+        r_nb,
+        cubic(&torque),
+    )?;
+    let bf = fit_columns(
+        &format!("{axis}.back_front_torque_ratio"),
+        "r_BF",
+        "r_BF",
+        r_bf,
+        cubic(&torque),
+    )?;
     Ok(Some((nb.model, bf.model, vec![nb.report, bf.report])))
 }
 
-/// The heat input series |τ·n| (W) of a component, from the estimated split.
-fn component_power(split: &TorqueSplitEstimator, component: Component, torque: &[f64], speed: &[f64]) -> Vec<f64> {
-    torque
-        .iter()
-        .zip(speed)
-        .map(|(&t, &n)| {
-            let s = split.update(t);
-            let tau = match component {
-                Component::FrontBearing => s.front_bearing_Nm,
-                Component::BackBearing => s.back_bearing_Nm,
-                Component::Nut => s.nut_Nm,
-            };
-            (tau * n * std::f64::consts::PI / 30.0).abs()
-        })
-        .collect()
+/// The drag-heat and load-heat input series of a component (see
+/// [`super::streaming::ComponentThermalEstimator`]), from the estimated split torque and the
+/// encoder travel speed, exactly as the streaming estimator computes them.
+fn component_heat_inputs(
+    split: &TorqueSplitEstimator,
+    component: Component,
+    recording: &Recording,
+    axis: AxisId,
+    lead_mm: f64,
+    purpose: &str,
+) -> Result<(Vec<f64>, Vec<f64>), CalibrationError> {
+    let torque = recording.column_for(&axis_column(axis, Quantity::Torque), purpose)?;
+    let speed = recording.column_for(&axis_column(axis, Quantity::Speed), purpose)?;
+    let position = recording.try_column(&axis_column(axis, Quantity::Position));
+    let time = recording.time();
+    let mut travel = super::pipeline::TravelSpeed::new(lead_mm);
+    let (mut drag, mut load) = (
+        Vec::with_capacity(time.len()),
+        Vec::with_capacity(time.len()),
+    );
+    for i in 0..time.len() {
+        let dt = if i == 0 {
+            0.0
+        } else {
+            (time[i] - time[i - 1]).max(0.0)
+        };
+        let n = travel.update(position.map(|p| p[i]), speed[i], dt);
+        let s = split.update(torque[i]);
+        let tau = match component {
+            Component::FrontBearing => s.front_bearing_Nm,
+            Component::BackBearing => s.back_bearing_Nm,
+            Component::Nut => s.nut_Nm,
+        };
+        let (d, l) = super::streaming::heat_inputs(tau, n);
+        drag.push(d);
+        load.push(l);
+    }
+    Ok((drag, load))
 }
 
 /// Accumulates `input` with time constant `tau_s` over the recording's own time steps.
@@ -463,49 +647,89 @@ fn accumulate(time: &[f64], input: &[f64], tau_s: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator [+ c_room·T_room] + c_BH1·H(τ), with τ
-/// (and the room term) chosen by blocked cross-validation.
-fn fit_heat_model(
+/// What a heat-model fit is about.
+struct HeatFit<'a> {
     axis: AxisId,
-    label: &str,
+    label: &'a str,
     component: Component,
-    split: &TorqueSplitEstimator,
-    database: &[Recording],
-    target: &str,
+    split: &'a TorqueSplitEstimator,
+    lead_mm: f64,
+    target: &'a str,
     has_ambient: bool,
+}
+
+/// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator [+ c_room·T_room] + c_H·H(τ)
+/// [+ c_L·H_load(τ)], with τ and the optional terms chosen on the experiments (or by blocked
+/// cross-validation).
+fn fit_heat_model(
+    fit: HeatFit<'_>,
+    database: &[Recording],
+    experiments: &[Recording],
 ) -> Result<(HeatModel, ModelReport), CalibrationError> {
-    let estimate = format!("{axis}.{label}");
-    let mut best: Option<(f64, Fitted)> = None;
-    let mut inputs = Vec::with_capacity(database.len());
-    for r in database {
-        let torque = r.column_for(&axis_column(axis, Quantity::Torque), &estimate)?;
-        let speed = r.column_for(&axis_column(axis, Quantity::Speed), &estimate)?;
-        inputs.push(component_power(split, component, torque, speed));
-    }
+    let estimate = format!("{}.{}", fit.axis, fit.label);
+    let inputs_of = |recordings: &[Recording]| {
+        recordings
+            .iter()
+            .map(|r| {
+                component_heat_inputs(
+                    fit.split,
+                    fit.component,
+                    r,
+                    fit.axis,
+                    fit.lead_mm,
+                    &estimate,
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let db_inputs = inputs_of(database)?;
+    let experiment_inputs = inputs_of(experiments)?;
+    let stator_name = axis_column(fit.axis, Quantity::StatorTemp);
+    let mut best: Option<(f64, f64, Fitted)> = None;
     for &tau in HEAT_TAUS_S {
-        let fitted = fit_best(&estimate, "T", database, target, |index, r| {
-            let stator = r.column_for(&axis_column(axis, Quantity::StatorTemp), &estimate)?.to_vec();
-            let heat = accumulate(r.time(), &inputs[index], tau);
-            let base = vec![("stator".to_string(), stator), ("heat".to_string(), heat)];
-            let mut candidates = vec![base.clone()];
-            if has_ambient {
-                let mut with_room = base;
-                with_room.insert(1, ("ambient".into(), r.column(AMBIENT)?.to_vec()));
-                candidates.push(with_room);
-            }
-            Ok(candidates)
-        })?;
-        if best.as_ref().is_none_or(|(_, b)| fitted.cv_r2 > b.cv_r2 + 1e-4) {
-            best = Some((tau, fitted));
+        let fitted = fit_best(
+            &estimate,
+            "T",
+            database,
+            experiments,
+            fit.target,
+            &|side, index, r| {
+                let (drag, load) = match side {
+                    Side::Database => &db_inputs[index],
+                    Side::Experiment => &experiment_inputs[index],
+                };
+                let stator = r.column_for(&stator_name, &estimate)?.to_vec();
+                let heat = accumulate(r.time(), drag, tau);
+                let load_heat = accumulate(r.time(), load, tau);
+                let drag_only = vec![
+                    ("stator".to_string(), stator.clone()),
+                    ("heat".to_string(), heat.clone()),
+                ];
+                let both = vec![
+                    ("stator".to_string(), stator),
+                    ("heat".to_string(), heat),
+                    ("load_heat".to_string(), load_heat),
+                ];
+                let mut candidates = with_room_variant(drag_only, r, fit.has_ambient)?;
+                candidates.extend(with_room_variant(both, r, fit.has_ambient)?);
+                Ok(candidates)
+            },
+        )?;
+        let score = fitted.report.selection_r2;
+        if best.as_ref().is_none_or(|(b, _, _)| score > *b + 1e-4) {
+            best = Some((score, tau, fitted));
         }
     }
-    let (tau, fitted) = best.ok_or_else(|| CalibrationError::NoData {
+    let (_, tau, fitted) = best.ok_or_else(|| CalibrationError::NoData {
         estimate: estimate.clone(),
         message: "no time constant could be fitted".into(),
     })?;
     let rate = database[0].sample_rate_hz().unwrap_or(1.0);
     let mut report = fitted.report;
-    report.equation = format!("{}; H ← H(1 − C_BH) + C_BH·|τ·n|, τ = {tau} s", report.equation);
+    report.equation = format!(
+        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag) and n·|τ| (load), τ = {tau} s",
+        report.equation
+    );
     Ok((
         HeatModel {
             tau_s: tau,
@@ -521,6 +745,7 @@ fn fit_heat_model(
 fn fit_elongation(
     axis: AxisId,
     database: &[Recording],
+    experiments: &[Recording],
     has_ambient: bool,
 ) -> Result<Option<(ElongationModel, ModelReport)>, CalibrationError> {
     let target = reference_column(axis, "elongation_um", None);
@@ -530,34 +755,44 @@ fn fit_elongation(
     let estimate = format!("{axis}.spindle_elongation");
     let mut best: Option<((f64, f64), Fitted)> = None;
     for &(fast, slow) in ELONGATION_TAUS_S {
-        let fitted = fit_best(&estimate, "δ_R", database, &target, |_, r| {
-            let stator = r.column_for(&axis_column(axis, Quantity::StatorTemp), &estimate)?;
-            let speed = r.column_for(&axis_column(axis, Quantity::Speed), &estimate)?;
-            let load = r.column_for(&axis_column(axis, Quantity::Load), &estimate)?;
-            let krpm: Vec<f64> = speed.iter().map(|s| s.abs() / 1000.0).collect();
-            let first = stator.first().copied().unwrap_or(0.0);
-            let base = vec![
-                ("delta_stator".to_string(), stator.iter().map(|t| t - first).collect()),
-                ("speed".to_string(), krpm.clone()),
-                ("load".to_string(), load.iter().map(|l| l.abs()).collect()),
-                ("heat_fast".to_string(), accumulate(r.time(), &krpm, fast)),
-                ("heat_slow".to_string(), accumulate(r.time(), &krpm, slow)),
-            ];
-            let mut candidates = vec![base.clone()];
-            if has_ambient {
-                let mut with_room = base;
-                with_room.push(("ambient".into(), r.column(AMBIENT)?.to_vec()));
-                candidates.push(with_room);
-            }
-            Ok(candidates)
-        })?;
-        if best.as_ref().is_none_or(|(_, b)| fitted.cv_r2 > b.cv_r2 + 1e-4) {
+        let fitted = fit_best(
+            &estimate,
+            "δ_R",
+            database,
+            experiments,
+            &target,
+            &|_, _, r| {
+                let stator = r.column_for(&axis_column(axis, Quantity::StatorTemp), &estimate)?;
+                let speed = r.column_for(&axis_column(axis, Quantity::Speed), &estimate)?;
+                let load = r.column_for(&axis_column(axis, Quantity::Load), &estimate)?;
+                let krpm: Vec<f64> = speed.iter().map(|s| s.abs() / 1000.0).collect();
+                let first = stator.first().copied().unwrap_or(0.0);
+                let base = vec![
+                    (
+                        "delta_stator".to_string(),
+                        stator.iter().map(|t| t - first).collect(),
+                    ),
+                    ("speed".to_string(), krpm.clone()),
+                    ("load".to_string(), load.iter().map(|l| l.abs()).collect()),
+                    ("heat_fast".to_string(), accumulate(r.time(), &krpm, fast)),
+                    ("heat_slow".to_string(), accumulate(r.time(), &krpm, slow)),
+                ];
+                with_room_variant(base, r, has_ambient)
+            },
+        )?;
+        if best
+            .as_ref()
+            .is_none_or(|(_, b)| fitted.report.selection_r2 > b.report.selection_r2 + 1e-4)
+        {
             best = Some(((fast, slow), fitted));
         }
     }
     Ok(best.map(|((fast, slow), fitted)| {
         let mut report = fitted.report;
-        report.equation = format!("{}; heat terms: speed accumulated with τ = {fast} s and {slow} s", report.equation);
+        report.equation = format!(
+            "{}; heat terms: speed accumulated with τ = {fast} s and {slow} s",
+            report.equation
+        );
         (
             ElongationModel {
                 fast_tau_s: fast,
@@ -601,14 +836,18 @@ fn estimated_temperatures(
     for i in 0..recording.len() {
         recording.row_into(i, &mut row);
         pipeline.update(&row);
-        let e = pipeline.feed_axis(axis).ok_or_else(|| CalibrationError::NoData {
-            estimate: format!("{axis}.straightness"),
-            message: "no temperature models for this axis".into(),
-        })?;
+        let e = pipeline
+            .feed_axis(axis)
+            .ok_or_else(|| CalibrationError::NoData {
+                estimate: format!("{axis}.straightness"),
+                message: "no temperature models for this axis".into(),
+            })?;
         if e.front_bearing_C.is_nan() || e.back_bearing_C.is_nan() || e.motor_flange_C.is_nan() {
             return Err(CalibrationError::NoData {
                 estimate: format!("{axis}.straightness"),
-                message: "straightness needs front-bearing, back-bearing and motor temperature models".into(),
+                message:
+                    "straightness needs front-bearing, back-bearing and motor temperature models"
+                        .into(),
             });
         }
         out.front.push(e.front_bearing_C);
@@ -638,20 +877,32 @@ fn apply_experiments(
     for recording in experiments {
         let series = super::accuracy::run(&current, recording)?;
         for (output, values) in series.outputs.iter().zip(&series.values) {
-            let Some(measured) = recording.try_column(&output.reference) else { continue };
+            let Some(measured) = recording.try_column(&output.reference) else {
+                continue;
+            };
             let entry = pairs.entry(output.column.clone()).or_default();
             entry.0.extend_from_slice(values);
             entry.1.extend_from_slice(measured);
         }
     }
     for (column, (predicted, measured)) in pairs {
-        let Some((axis, slot)) = model_slot(&column, stage) else { continue };
+        let Some((axis, slot)) = model_slot(&column, stage) else {
+            continue;
+        };
         if predicted.len() < MIN_EXPERIMENT_ROWS {
             continue;
         }
         let n = predicted.len() as f64;
-        let sse_before: f64 = predicted.iter().zip(&measured).map(|(p, m)| (m - p).powi(2)).sum();
-        let design = Design::from_columns("measured", measured.clone(), vec![("predicted".into(), predicted.clone())]);
+        let sse_before: f64 = predicted
+            .iter()
+            .zip(&measured)
+            .map(|(p, m)| (m - p).powi(2))
+            .sum();
+        let design = Design::from_columns(
+            "measured",
+            measured.clone(),
+            vec![("predicted".into(), predicted.clone())],
+        );
         let Ok(design) = design else { continue };
         let Ok(fit) = ols(&design) else { continue };
         let (offset, gain) = (fit.coefficients[0].estimate, fit.coefficients[1].estimate);
@@ -676,10 +927,17 @@ fn apply_experiments(
                     *c *= gain;
                 }
                 model.coefficients[0] += offset;
-                model.equation = format!("{} (corrected by experiments: {offset:+.4} + {gain:.4}×)", model.equation);
+                model.equation = format!(
+                    "{} (corrected by experiments: {offset:+.4} + {gain:.4}×)",
+                    model.equation
+                );
             }
         }
-        if let Some(entry) = report.models.iter_mut().find(|m| slot.matches(axis, &m.estimate)) {
+        if let Some(entry) = report
+            .models
+            .iter_mut()
+            .find(|m| slot.matches(axis, &m.estimate))
+        {
             entry.experiment_correction = Some(correction);
         }
     }

@@ -4,6 +4,7 @@
 //! vector (`FLANGE_FEATURES`, `HEAT_FEATURES`, …); binding a model to it turns term names into
 //! indices once, so evaluating it per frame is a handful of multiply-adds with no lookups and no
 //! allocation.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use std::collections::BTreeMap;
 
@@ -16,8 +17,9 @@ pub const FLANGE_FEATURES: &[&str] = &["const", "stator", "ambient"];
 /// Torque ratios (Eq. 8): a cubic in the motor torque.
 pub const RATIO_FEATURES: &[&str] = &["const", "torque", "torque^2", "torque^3"];
 /// Bearing and nut temperature (Eqs. 9–12): constant, stator (the initial temperature),
-/// room, accumulated heat.
-pub const HEAT_FEATURES: &[&str] = &["const", "stator", "ambient", "heat"];
+/// room, accumulated drag heat (∝ speed: the preload drag torque is nearly constant) and
+/// accumulated load heat (∝ speed × the component's estimated torque).
+pub const HEAT_FEATURES: &[&str] = &["const", "stator", "ambient", "heat", "load_heat"];
 /// Straightness per node (Eqs. 13–14): cubics in front-bearing, back-bearing and motor
 /// temperatures, and the room.
 pub const STRAIGHTNESS_FEATURES: &[&str] = &[
@@ -145,13 +147,18 @@ impl Calibration {
         }
         for (axis, m) in &self.axes {
             let check = |name: String, model: &LinearModel, features: &[&str]| {
-                BoundModel::bind(model, features).map(|_| ()).map_err(|e| (name, e))
+                BoundModel::bind(model, features)
+                    .map(|_| ())
+                    .map_err(|e| (name, e))
             };
             let p = |field: &str| format!("axes.{axis}.{field}");
             if let Some(model) = &m.motor_flange {
                 check(p("motor_flange"), model, FLANGE_FEATURES)?;
             }
-            for (field, model) in [("nut_bearing_ratio", &m.nut_bearing_ratio), ("back_front_ratio", &m.back_front_ratio)] {
+            for (field, model) in [
+                ("nut_bearing_ratio", &m.nut_bearing_ratio),
+                ("back_front_ratio", &m.back_front_ratio),
+            ] {
                 if let Some(model) = model {
                     check(p(field), model, RATIO_FEATURES)?;
                 }
@@ -169,10 +176,18 @@ impl Calibration {
                 }
             }
             for (k, model) in m.straightness_h.iter().enumerate() {
-                check(p(&format!("straightness_h[{k}]")), model, STRAIGHTNESS_FEATURES)?;
+                check(
+                    p(&format!("straightness_h[{k}]")),
+                    model,
+                    STRAIGHTNESS_FEATURES,
+                )?;
             }
             for (k, model) in m.straightness_v.iter().enumerate() {
-                check(p(&format!("straightness_v[{k}]")), model, STRAIGHTNESS_FEATURES)?;
+                check(
+                    p(&format!("straightness_v[{k}]")),
+                    model,
+                    STRAIGHTNESS_FEATURES,
+                )?;
             }
             if let Some(e) = &m.elongation {
                 if !(e.fast_tau_s > 0.0 && e.slow_tau_s > 0.0) {
@@ -256,16 +271,33 @@ mod tests {
 
     #[test]
     fn binding_maps_names_to_features_and_evaluates() {
-        let bound = BoundModel::bind(&model(&["const", "ambient", "stator"], &[1.0, 2.0, 3.0]), FLANGE_FEATURES).unwrap();
-        assert_eq!(bound.eval(&[1.0, 10.0, 100.0]), 1.0 + 3.0 * 10.0 + 2.0 * 100.0);
+        let bound = BoundModel::bind(
+            &model(&["const", "ambient", "stator"], &[1.0, 2.0, 3.0]),
+            FLANGE_FEATURES,
+        )
+        .unwrap();
+        assert_eq!(
+            bound.eval(&[1.0, 10.0, 100.0]),
+            1.0 + 3.0 * 10.0 + 2.0 * 100.0
+        );
     }
 
     #[test]
     fn binding_refuses_malformed_models() {
-        assert!(BoundModel::bind(&model(&["const", "rotor"], &[1.0, 2.0]), FLANGE_FEATURES).unwrap_err().contains("unknown term `rotor`"));
+        assert!(
+            BoundModel::bind(&model(&["const", "rotor"], &[1.0, 2.0]), FLANGE_FEATURES)
+                .unwrap_err()
+                .contains("unknown term `rotor`")
+        );
         assert!(BoundModel::bind(&model(&["stator"], &[1.0]), FLANGE_FEATURES).is_err());
         assert!(BoundModel::bind(&model(&["const", "stator"], &[1.0]), FLANGE_FEATURES).is_err());
-        assert!(BoundModel::bind(&model(&["const", "stator", "stator"], &[1.0, 1.0, 1.0]), FLANGE_FEATURES).is_err());
+        assert!(
+            BoundModel::bind(
+                &model(&["const", "stator", "stator"], &[1.0, 1.0, 1.0]),
+                FLANGE_FEATURES
+            )
+            .is_err()
+        );
         assert!(BoundModel::bind(&model(&["const"], &[f64::NAN]), FLANGE_FEATURES).is_err());
     }
 }

@@ -1,5 +1,6 @@
 //! The estimator pipeline: every estimator of every axis, bound to a frame layout once, then
 //! updated frame by frame without allocating.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use crate::profile::{AxisKind, MachineProfile};
 use crate::signal::channel::AMBIENT;
@@ -98,6 +99,7 @@ struct AxisChannels {
     torque: usize,
     load: Option<usize>,
     stator: usize,
+    position: Option<usize>,
 }
 
 impl AxisChannels {
@@ -114,6 +116,7 @@ impl AxisChannels {
             torque: need(Quantity::Torque)?,
             load: schema.index_of(&axis_column(axis, Quantity::Load)),
             stator: need(Quantity::StatorTemp)?,
+            position: schema.index_of(&axis_column(axis, Quantity::Position)),
         })
     }
 }
@@ -121,6 +124,7 @@ impl AxisChannels {
 struct FeedAxisPipeline {
     axis: AxisId,
     channels: AxisChannels,
+    travel: TravelSpeed,
     flange: Option<MotorFlangeEstimator>,
     split: Option<TorqueSplitEstimator>,
     front: Option<ComponentThermalEstimator>,
@@ -163,15 +167,25 @@ impl EstimatorPipeline {
             if uses_ambient(models) && ambient.is_none() {
                 return Err(PipelineError::MissingColumn {
                     column: AMBIENT.into(),
-                    purpose: format!("the {axis} axis models, which were fitted with the room temperature"),
+                    purpose: format!(
+                        "the {axis} axis models, which were fitted with the room temperature"
+                    ),
                 });
             }
             let channels = AxisChannels::resolve(schema, axis)?;
-            let model_err = |what: &'static str| move |message: String| PipelineError::Model { axis, what, message };
+            let model_err = |what: &'static str| {
+                move |message: String| PipelineError::Model {
+                    axis,
+                    what,
+                    message,
+                }
+            };
             match axis_profile.kind {
                 AxisKind::Feed => {
                     let split = match (&models.nut_bearing_ratio, &models.back_front_ratio) {
-                        (Some(nb), Some(bf)) => Some(TorqueSplitEstimator::new(nb, bf).map_err(model_err("torque split"))?),
+                        (Some(nb), Some(bf)) => Some(
+                            TorqueSplitEstimator::new(nb, bf).map_err(model_err("torque split"))?,
+                        ),
                         _ => None,
                     };
                     let thermal = |m: &Option<super::models::HeatModel>, what: &'static str| {
@@ -188,23 +202,35 @@ impl EstimatorPipeline {
                         if m.is_empty() {
                             Ok(None)
                         } else {
-                            StraightnessEstimator::new(m, &positions).map(Some).map_err(model_err(what))
+                            StraightnessEstimator::new(m, &positions)
+                                .map(Some)
+                                .map_err(model_err(what))
                         }
                     };
+                    let lead_mm = axis_profile.screw.as_ref().map_or(1.0, |s| s.lead_mm);
                     feed.push(FeedAxisPipeline {
                         axis,
                         channels,
+                        travel: TravelSpeed::new(lead_mm),
                         flange: models
                             .motor_flange
                             .as_ref()
-                            .map(|m| MotorFlangeEstimator::new(m).map_err(model_err("motor flange")))
+                            .map(|m| {
+                                MotorFlangeEstimator::new(m).map_err(model_err("motor flange"))
+                            })
                             .transpose()?,
                         front: thermal(&models.front_bearing_temp, "front bearing temperature")?,
                         back: thermal(&models.back_bearing_temp, "back bearing temperature")?,
                         nut: thermal(&models.nut_temp, "nut temperature")?,
                         split,
-                        straightness_h: straightness(&models.straightness_h, "horizontal straightness")?,
-                        straightness_v: straightness(&models.straightness_v, "vertical straightness")?,
+                        straightness_h: straightness(
+                            &models.straightness_h,
+                            "horizontal straightness",
+                        )?,
+                        straightness_v: straightness(
+                            &models.straightness_v,
+                            "vertical straightness",
+                        )?,
                         estimate: FeedAxisEstimate::default(),
                     });
                 }
@@ -213,8 +239,11 @@ impl EstimatorPipeline {
                         spindles.push(SpindlePipeline {
                             axis,
                             channels,
-                            elongation: SpindleElongationEstimator::new(model).map_err(model_err("elongation"))?,
-                            estimate: SpindleEstimate { elongation_um: f64::NAN },
+                            elongation: SpindleElongationEstimator::new(model)
+                                .map_err(model_err("elongation"))?,
+                            estimate: SpindleEstimate {
+                                elongation_um: f64::NAN,
+                            },
                         });
                     }
                 }
@@ -236,7 +265,10 @@ impl EstimatorPipeline {
         let ambient = self.ambient.map_or(f64::NAN, |i| frame[i]);
         for axis in &mut self.feed {
             let c = axis.channels;
-            let (speed, torque, stator) = (frame[c.speed], frame[c.torque], frame[c.stator]);
+            let (torque, stator) = (frame[c.torque], frame[c.stator]);
+            let speed = axis
+                .travel
+                .update(c.position.map(|i| frame[i]), frame[c.speed], dt);
             let e = &mut axis.estimate;
             if let Some(flange) = &axis.flange {
                 e.motor_flange_C = flange.update(stator, ambient);
@@ -244,10 +276,12 @@ impl EstimatorPipeline {
             if let Some(split) = &axis.split {
                 e.split = split.update(torque);
                 if let Some(front) = &mut axis.front {
-                    e.front_bearing_C = front.update(e.split.front_bearing_Nm, speed, stator, ambient, dt);
+                    e.front_bearing_C =
+                        front.update(e.split.front_bearing_Nm, speed, stator, ambient, dt);
                 }
                 if let Some(back) = &mut axis.back {
-                    e.back_bearing_C = back.update(e.split.back_bearing_Nm, speed, stator, ambient, dt);
+                    e.back_bearing_C =
+                        back.update(e.split.back_bearing_Nm, speed, stator, ambient, dt);
                 }
                 if let Some(nut) = &mut axis.nut {
                     e.nut_C = nut.update(e.split.nut_Nm, speed, stator, ambient, dt);
@@ -256,13 +290,23 @@ impl EstimatorPipeline {
             let motor = e.motor_flange_C;
             if let Some(h) = &axis.straightness_h {
                 e.nodes = h.nodes();
-                e.straightness_h_zone_um =
-                    h.update(e.front_bearing_C, e.back_bearing_C, motor, ambient, &mut e.straightness_h_um);
+                e.straightness_h_zone_um = h.update(
+                    e.front_bearing_C,
+                    e.back_bearing_C,
+                    motor,
+                    ambient,
+                    &mut e.straightness_h_um,
+                );
             }
             if let Some(v) = &axis.straightness_v {
                 e.nodes = v.nodes();
-                e.straightness_v_zone_um =
-                    v.update(e.front_bearing_C, e.back_bearing_C, motor, ambient, &mut e.straightness_v_um);
+                e.straightness_v_zone_um = v.update(
+                    e.front_bearing_C,
+                    e.back_bearing_C,
+                    motor,
+                    ambient,
+                    &mut e.straightness_v_um,
+                );
             }
         }
         for spindle in &mut self.spindles {
@@ -277,12 +321,18 @@ impl EstimatorPipeline {
 
     /// The latest estimates of a feed axis.
     pub fn feed_axis(&self, axis: AxisId) -> Option<&FeedAxisEstimate> {
-        self.feed.iter().find(|a| a.axis == axis).map(|a| &a.estimate)
+        self.feed
+            .iter()
+            .find(|a| a.axis == axis)
+            .map(|a| &a.estimate)
     }
 
     /// The latest estimates of a spindle.
     pub fn spindle(&self, axis: AxisId) -> Option<&SpindleEstimate> {
-        self.spindles.iter().find(|a| a.axis == axis).map(|a| &a.estimate)
+        self.spindles
+            .iter()
+            .find(|a| a.axis == axis)
+            .map(|a| &a.estimate)
     }
 
     /// The operator measured the tool: spindle elongation counts from the next frame.
@@ -298,10 +348,18 @@ impl EstimatorPipeline {
         for axis in &self.feed {
             let a = axis.axis;
             let mut push = |id: String, est: String, reference: String| {
-                out.push(EstimateOutput { id, column: est, reference })
+                out.push(EstimateOutput {
+                    id,
+                    column: est,
+                    reference,
+                })
             };
             if axis.flange.is_some() {
-                push("motor_flange_temp".into(), format!("est.{a}.motor_flange_temp_C"), reference_column(a, "motor_flange_temp_C", None));
+                push(
+                    "motor_flange_temp".into(),
+                    format!("est.{a}.motor_flange_temp_C"),
+                    reference_column(a, "motor_flange_temp_C", None),
+                );
             }
             if axis.split.is_some() {
                 for (id, q) in [
@@ -309,25 +367,49 @@ impl EstimatorPipeline {
                     ("back_bearing_torque", "back_bearing_torque_Nm"),
                     ("nut_torque", "nut_torque_Nm"),
                 ] {
-                    push(id.into(), format!("est.{a}.{q}"), reference_column(a, q, None));
+                    push(
+                        id.into(),
+                        format!("est.{a}.{q}"),
+                        reference_column(a, q, None),
+                    );
                 }
             }
             for (present, id, q) in [
-                (axis.front.is_some(), "front_bearing_temp", "front_bearing_temp_C"),
-                (axis.back.is_some(), "back_bearing_temp", "back_bearing_temp_C"),
+                (
+                    axis.front.is_some(),
+                    "front_bearing_temp",
+                    "front_bearing_temp_C",
+                ),
+                (
+                    axis.back.is_some(),
+                    "back_bearing_temp",
+                    "back_bearing_temp_C",
+                ),
                 (axis.nut.is_some(), "nut_temp", "nut_temp_C"),
             ] {
                 if present {
-                    push(id.into(), format!("est.{a}.{q}"), reference_column(a, q, None));
+                    push(
+                        id.into(),
+                        format!("est.{a}.{q}"),
+                        reference_column(a, q, None),
+                    );
                 }
             }
             for (estimator, hv) in [(&axis.straightness_h, "h"), (&axis.straightness_v, "v")] {
                 if let Some(s) = estimator {
                     for k in 1..=s.nodes() {
                         let q = format!("straightness_{hv}_um");
-                        push(format!("straightness_{hv}#{k}"), format!("est.{a}.{q}#{k}"), reference_column(a, &q, Some(k)));
+                        push(
+                            format!("straightness_{hv}#{k}"),
+                            format!("est.{a}.{q}#{k}"),
+                            reference_column(a, &q, Some(k)),
+                        );
                     }
-                    push(format!("straightness_{hv}_zone"), format!("est.{a}.straightness_{hv}_zone_um"), String::new());
+                    push(
+                        format!("straightness_{hv}_zone"),
+                        format!("est.{a}.straightness_{hv}_zone_um"),
+                        String::new(),
+                    );
                 }
             }
         }
@@ -351,7 +433,11 @@ impl EstimatorPipeline {
                 out.push(e.motor_flange_C);
             }
             if axis.split.is_some() {
-                out.extend([e.split.front_bearing_Nm, e.split.back_bearing_Nm, e.split.nut_Nm]);
+                out.extend([
+                    e.split.front_bearing_Nm,
+                    e.split.back_bearing_Nm,
+                    e.split.nut_Nm,
+                ]);
             }
             for (present, value) in [
                 (axis.front.is_some(), e.front_bearing_C),
@@ -363,8 +449,16 @@ impl EstimatorPipeline {
                 }
             }
             for (estimator, values, zone) in [
-                (&axis.straightness_h, &e.straightness_h_um, e.straightness_h_zone_um),
-                (&axis.straightness_v, &e.straightness_v_um, e.straightness_v_zone_um),
+                (
+                    &axis.straightness_h,
+                    &e.straightness_h_um,
+                    e.straightness_h_zone_um,
+                ),
+                (
+                    &axis.straightness_v,
+                    &e.straightness_v_um,
+                    e.straightness_v_zone_um,
+                ),
             ] {
                 if let Some(s) = estimator {
                     out.extend_from_slice(&values[..s.nodes()]);
@@ -374,6 +468,36 @@ impl EstimatorPipeline {
         }
         for spindle in &self.spindles {
             out.push(spindle.estimate.elongation_um);
+        }
+    }
+}
+
+/// The speed an axis travelled at over the last sample interval, from its encoder position;
+/// the sampled speed when there is no position channel or no interval yet.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TravelSpeed {
+    lead_mm: f64,
+    previous_mm: Option<f64>,
+}
+
+impl TravelSpeed {
+    pub(crate) fn new(lead_mm: f64) -> Self {
+        TravelSpeed {
+            lead_mm,
+            previous_mm: None,
+        }
+    }
+
+    /// rpm over the interval `dt` ending at this frame.
+    #[inline]
+    pub(crate) fn update(&mut self, position_mm: Option<f64>, sampled_rpm: f64, dt: f64) -> f64 {
+        let Some(x) = position_mm else {
+            return sampled_rpm;
+        };
+        let previous = self.previous_mm.replace(x);
+        match previous {
+            Some(p) if dt > 0.0 => (x - p).abs() / self.lead_mm / dt * 60.0,
+            _ => sampled_rpm,
         }
     }
 }
@@ -392,9 +516,17 @@ pub struct EstimateOutput {
 fn uses_ambient(models: &AxisModels) -> bool {
     let uses = |m: &super::models::LinearModel| m.terms.iter().any(|t| t == "ambient");
     models.motor_flange.as_ref().is_some_and(uses)
-        || [&models.front_bearing_temp, &models.back_bearing_temp, &models.nut_temp]
+        || [
+            &models.front_bearing_temp,
+            &models.back_bearing_temp,
+            &models.nut_temp,
+        ]
+        .iter()
+        .any(|m| m.as_ref().is_some_and(|h| uses(&h.temperature)))
+        || models
+            .straightness_h
             .iter()
-            .any(|m| m.as_ref().is_some_and(|h| uses(&h.temperature)))
-        || models.straightness_h.iter().chain(&models.straightness_v).any(uses)
+            .chain(&models.straightness_v)
+            .any(uses)
         || models.elongation.as_ref().is_some_and(|e| uses(&e.model))
 }

@@ -3,6 +3,7 @@
 //! One type per estimate, as in the paper's model table. They are pure functions of the frames
 //! they have seen plus their fitted models, so the same code runs live at 1 kHz, over a replayed
 //! recording, and in benchmarks.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use super::models::{
     BoundModel, ELONGATION_FEATURES, ElongationModel, FLANGE_FEATURES, HEAT_FEATURES, HeatModel,
@@ -44,7 +45,11 @@ impl HeatAccumulator {
     pub fn update(&mut self, current: f64, dt: f64) -> f64 {
         if dt != self.cached_dt {
             self.cached_dt = dt;
-            self.cached_factor = if dt > 0.0 { 1.0 - (-dt / self.tau_s).exp() } else { 0.0 };
+            self.cached_factor = if dt > 0.0 {
+                1.0 - (-dt / self.tau_s).exp()
+            } else {
+                0.0
+            };
         }
         self.value += self.cached_factor * (current - self.value);
         self.value
@@ -127,9 +132,16 @@ impl TorqueSplitEstimator {
 }
 
 /// Component temperature from accumulated friction heat (Eqs. 9–12).
+///
+/// Eq. 11's heat H′ = C_HB·τ·n has two parts here. The preload drag torque of a bearing or
+/// nut is nearly constant, so its heat is ∝ n; the load-dependent part is ∝ n·|τ|. Both are
+/// accumulated with the fitted τ (Eq. 10). `n` is the axis's *travel* speed over the last
+/// sample interval (encoder distance / time) rather than the sampled speed: a 1 Hz sample of a
+/// 0.3 s rapid move usually sees the axis standing, but the encoder saw it move.
 #[derive(Debug, Clone)]
 pub struct ComponentThermalEstimator {
     heat: HeatAccumulator,
+    load_heat: HeatAccumulator,
     model: BoundModel,
 }
 
@@ -139,22 +151,43 @@ impl ComponentThermalEstimator {
     pub fn new(model: &HeatModel) -> Result<Self, String> {
         Ok(ComponentThermalEstimator {
             heat: HeatAccumulator::new(model.tau_s),
+            load_heat: HeatAccumulator::new(model.tau_s),
             model: BoundModel::bind(&model.temperature, HEAT_FEATURES)?,
         })
     }
 
-    /// °C after one sample: H′ = |τ·n| (W), H accumulates, T = f(stator, room, H).
+    /// °C after one sample, from the component's torque, the travel speed over the interval,
+    /// and the stator and room temperatures.
     #[inline]
-    pub fn update(&mut self, torque_Nm: f64, speed_rpm: f64, stator_C: f64, ambient_C: f64, dt: f64) -> f64 {
-        let power = (torque_Nm * speed_rpm * RPM_TO_RAD_PER_S).abs();
-        let h = self.heat.update(power, dt);
-        self.model.eval(&[1.0, stator_C, ambient_C, h])
+    pub fn update(
+        &mut self,
+        torque_Nm: f64,
+        travel_rpm: f64,
+        stator_C: f64,
+        ambient_C: f64,
+        dt: f64,
+    ) -> f64 {
+        let (drag, load) = heat_inputs(torque_Nm, travel_rpm);
+        let h = self.heat.update(drag, dt);
+        let l = self.load_heat.update(load, dt);
+        self.model.eval(&[1.0, stator_C, ambient_C, h, l])
     }
 
     /// The accumulated heat, W.
     pub fn heat(&self) -> f64 {
         self.heat.value()
     }
+}
+
+/// The two heat inputs of a component: drag heat ∝ travel speed (krpm) and load heat ∝ travel
+/// speed × |torque| (kW-like units: N·m · rad/s / 1000).
+#[inline]
+pub fn heat_inputs(torque_Nm: f64, travel_rpm: f64) -> (f64, f64) {
+    let krpm = travel_rpm.abs() / 1000.0;
+    (
+        krpm,
+        (torque_Nm * travel_rpm * RPM_TO_RAD_PER_S).abs() / 1000.0,
+    )
 }
 
 /// Largest number of straightness nodes an axis may have.
@@ -192,7 +225,14 @@ impl StraightnessEstimator {
 
     /// Fills `out` with each node's deviation (µm) and returns the minimum-zone value (µm).
     #[inline]
-    pub fn update(&self, front_C: f64, back_C: f64, motor_C: f64, ambient_C: f64, out: &mut [f64; MAX_NODES]) -> f64 {
+    pub fn update(
+        &self,
+        front_C: f64,
+        back_C: f64,
+        motor_C: f64,
+        ambient_C: f64,
+        out: &mut [f64; MAX_NODES],
+    ) -> f64 {
         let (f2, b2, m2) = (front_C * front_C, back_C * back_C, motor_C * motor_C);
         let features = [
             1.0,
@@ -281,7 +321,14 @@ impl SpindleElongationEstimator {
 
     /// µm since the tool calibration.
     #[inline]
-    pub fn update(&mut self, stator_C: f64, speed_rpm: f64, load_pct: f64, ambient_C: f64, dt: f64) -> f64 {
+    pub fn update(
+        &mut self,
+        stator_C: f64,
+        speed_rpm: f64,
+        load_pct: f64,
+        ambient_C: f64,
+        dt: f64,
+    ) -> f64 {
         let speed_krpm = speed_rpm.abs() / 1000.0;
         let fast = self.fast.update(speed_krpm, dt);
         let slow = self.slow.update(speed_krpm, dt);
@@ -314,7 +361,11 @@ mod tests {
         // A symmetric bow 0, 3, 4, 3, 0: the zone is the 4 µm sag (end points on one line).
         assert!((minimum_zone_straightness(&x, &[0.0, 3.0, 4.0, 3.0, 0.0]) - 4.0).abs() < 1e-12);
         // A tilted bow has the same straightness.
-        let tilted: Vec<f64> = [0.0, 3.0, 4.0, 3.0, 0.0].iter().zip(&x).map(|(d, x)| d + 0.01 * x).collect();
+        let tilted: Vec<f64> = [0.0, 3.0, 4.0, 3.0, 0.0]
+            .iter()
+            .zip(&x)
+            .map(|(d, x)| d + 0.01 * x)
+            .collect();
         assert!((minimum_zone_straightness(&x, &tilted) - 4.0).abs() < 1e-9);
     }
 

@@ -2,8 +2,8 @@
 //! statsmodels-compatible statistics, a terms language for polynomial and dynamic features,
 //! sensitivity analysis, model selection and online recalibration.
 //!
-//! The usual path: [`parse_terms`] → [`Design::from_recording`] → [`ols`] → [`sensitivity`] →
-//! [`FitReport`]; or [`select`] first to choose the terms.
+//! The usual path: [`parse_terms`] → [`Design::from_recording`] → [`ols()`] → [`sensitivity()`] →
+//! [`FitReport`]; or [`select()`] first to choose the terms.
 //!
 //! ```
 //! use servosight::fit::{Design, ols, parse_terms, sensitivity};

@@ -12,7 +12,9 @@
 //! Neighbouring samples of a recording are strongly correlated, so random K-fold would let the
 //! model see almost the same rows it is tested on and report an optimistic score.
 //!
-//! Terms are treated independently: selection may keep `a^2` without `a`. Candidates that
+//! Every model in the search is fitted on the same rows, those where every candidate has a
+//! value (a `lag` candidate drops the first rows for all of them), so BIC and p-values compare
+//! like with like. Terms are treated independently: selection may keep `a^2` without `a`. Candidates that
 //! cannot be added because they are constant or collinear with the current model are skipped
 //! and listed in [`Selection::unusable`].
 

@@ -725,4 +725,27 @@ mod tests {
         assert_eq!(&out[1..], &[4.0, 4.0]);
         assert_eq!(delta_series(&[f64::NAN, 3.0, 5.0])[1..], [0.0, 2.0]);
     }
+
+    proptest::proptest! {
+        /// Whatever is typed: no panic, an error position inside the text (or just after it),
+        /// and any accepted list reparses from its canonical names to the same terms.
+        #[test]
+        fn parser_is_total_and_canonical_names_round_trip(
+            text in "[abc.#_, *^()0-9]{0,12}|(lag|lowpass|delta)\\([abc*^0-9,. ]{0,10}\\)"
+        ) {
+            match parse_terms(&text) {
+                Ok(terms) => {
+                    let canonical: Vec<&str> = terms.iter().map(Term::name).collect();
+                    if !canonical.is_empty() {
+                        let again = parse_terms(&canonical.join(",")).unwrap();
+                        proptest::prop_assert_eq!(again, terms);
+                    }
+                }
+                Err(error) => {
+                    proptest::prop_assert!(error.position >= 1);
+                    proptest::prop_assert!(error.position <= text.chars().count() + 1);
+                }
+            }
+        }
+    }
 }

@@ -1,0 +1,43 @@
+//! `servosight audit verify LOG`: checks the compensation audit log's hash chain.
+
+use std::path::PathBuf;
+
+use servosight::compensation::audit;
+
+/// Arguments of `servosight audit`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The audit subcommands.
+#[derive(Debug, clap::Subcommand)]
+pub enum Command {
+    /// Verify every entry and the chain; fails naming the first edited line.
+    Verify {
+        /// The audit log (JSON lines).
+        log: PathBuf,
+        /// Write `{entries, head_hash}` as JSON here ("-" for stdout).
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.command {
+        Command::Verify { log, json } => {
+            let report = audit::verify(&log)?;
+            match json {
+                Some(path) => crate::servosight_cli::write_json(&path, &report)?,
+                None => println!(
+                    "{}: {} entries, chain intact, head {}",
+                    log.display(),
+                    report.entries,
+                    report.head_hash
+                ),
+            }
+            Ok(())
+        }
+    }
+}

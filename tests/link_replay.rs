@@ -1,0 +1,174 @@
+//! Replay of a CSV v1 recording through `ControllerLink`: pacing at 1× and N×, as fast as
+//! possible, pause, seek, end of file, and no controller to write to.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use servosight::link::{
+    ConnectionState, ControllerLink, Frame, LinkError, ReplayOptions, ReplaySpeed,
+};
+
+/// A recording of `rows` rows at 100 Hz.
+fn write_recording(path: &Path, rows: usize) {
+    let mut text = String::from("# machine: replay-test\ntime_s,X.speed_rpm\n");
+    for i in 0..rows {
+        text.push_str(&format!("{},{}\n", i as f64 / 100.0, i));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+fn collect(
+    link: &mut ControllerLink,
+    until: impl Fn(&[Frame]) -> bool,
+    limit: Duration,
+) -> Vec<Frame> {
+    let deadline = Instant::now() + limit;
+    let mut frames = Vec::new();
+    while Instant::now() < deadline && !until(&frames) {
+        while let Some(frame) = link.try_next_frame() {
+            frames.push(frame);
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    frames
+}
+
+#[test]
+fn as_fast_as_possible_delivers_every_row_in_order_then_ends() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("r.csv");
+    write_recording(&path, 5000);
+    let options = ReplayOptions {
+        speed: ReplaySpeed::AsFastAsPossible,
+        ..ReplayOptions::default()
+    };
+    let mut link = ControllerLink::replay(&path, options).unwrap();
+    assert_eq!(link.schema().names(), ["time_s", "X.speed_rpm"]);
+    let frames = collect(&mut link, |f| f.len() == 5000, Duration::from_secs(20));
+    assert_eq!(frames.len(), 5000);
+    assert!(frames.iter().enumerate().all(|(i, f)| f.row[1] == i as f64));
+    std::thread::sleep(Duration::from_millis(50));
+    let status = link.status();
+    assert_eq!(status.state, ConnectionState::Disconnected);
+    assert_eq!(status.last_error.as_deref(), Some("end of recording"));
+    assert_eq!(status.stats.frames, 5000);
+}
+
+#[test]
+fn real_time_and_faster_replays_keep_the_recorded_pace() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("r.csv");
+    write_recording(&path, 101); // 1.00 s of recording
+    for (factor, expected_s) in [(1.0, 1.0), (4.0, 0.25)] {
+        let options = ReplayOptions {
+            speed: ReplaySpeed::Factor(factor),
+            ..ReplayOptions::default()
+        };
+        let started = Instant::now();
+        let mut link = ControllerLink::replay(&path, options).unwrap();
+        let frames = collect(&mut link, |f| f.len() == 101, Duration::from_secs(5));
+        let took = started.elapsed().as_secs_f64();
+        assert_eq!(frames.len(), 101);
+        assert!(
+            took >= expected_s * 0.95 && took < expected_s + 0.3,
+            "{factor}×: {took:.3} s for {expected_s} s"
+        );
+    }
+}
+
+#[test]
+fn pause_goes_stale_and_seek_jumps() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("r.csv");
+    write_recording(&path, 1000); // 10 s
+    let options = ReplayOptions {
+        speed: ReplaySpeed::Factor(1.0),
+        paused: false,
+        stale_after: Duration::from_millis(200),
+    };
+    let mut link = ControllerLink::replay(&path, options).unwrap();
+    let frames = collect(&mut link, |f| f.len() >= 10, Duration::from_secs(2));
+    assert_eq!(link.status().state, ConnectionState::Connected);
+    link.set_paused(true);
+    std::thread::sleep(Duration::from_millis(50));
+    let _ = collect(&mut link, |_| false, Duration::from_millis(20));
+    let during_pause = collect(&mut link, |_| false, Duration::from_millis(400));
+    assert!(
+        during_pause.is_empty(),
+        "{} frames while paused",
+        during_pause.len()
+    );
+    assert_eq!(
+        link.status().state,
+        ConnectionState::Stale,
+        "a paused replay is not live"
+    );
+    link.seek(7.5);
+    link.set_paused(false);
+    let after = collect(&mut link, |f| !f.is_empty(), Duration::from_secs(2));
+    assert_eq!(after[0].row[0], 7.5, "first frame after the seek");
+    assert!(frames[0].row[0] < 1.0);
+    assert_eq!(link.status().state, ConnectionState::Connected);
+}
+
+#[test]
+fn a_replay_has_no_controller_to_write_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("r.csv");
+    write_recording(&path, 10);
+    let link = ControllerLink::replay(&path, ReplayOptions::default()).unwrap();
+    assert!(matches!(
+        link.read_compensation().wait(),
+        Err(LinkError::Unsupported(_))
+    ));
+    let missing = ControllerLink::replay(&dir.path().join("nope.csv"), ReplayOptions::default());
+    assert!(matches!(missing, Err(LinkError::Recording(_))));
+}
+
+#[test]
+fn the_embedded_twin_streams_and_takes_compensation() {
+    use servosight::compensation::{
+        self, AuditLog, CompensationId, CompensationLimits, Credentials, Proposal, Request, Role,
+    };
+    use servosight::signal::AxisId;
+    let config =
+        servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, Some(1.0), 7);
+    let mut link = ControllerLink::twin(
+        config,
+        ReplaySpeed::Factor(600.0),
+        Duration::from_millis(500),
+    )
+    .unwrap();
+    let frames = collect(&mut link, |f| f.len() >= 50, Duration::from_secs(5));
+    assert!(frames.len() >= 50);
+    assert!(link.schema().index_of("X.position_mm").is_some());
+    let step = frames[1].row[0] - frames[0].row[0];
+    assert!(
+        (step - 1.0).abs() < 1e-9,
+        "1 Hz twin, got a step of {step} s"
+    );
+    let mut users = Credentials::default();
+    users.set_user("maria", Role::Approver, "pw").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut audit = AuditLog::open(&dir.path().join("audit.jsonl")).unwrap();
+    let backlash = CompensationId::Backlash(AxisId::X);
+    let approved = Request::new(
+        Proposal {
+            changes: [(backlash, 7.0)].into_iter().collect(),
+            why: "twin".into(),
+            evidence: "test".into(),
+            action: "adjust".into(),
+        },
+        "otto",
+    )
+    .unwrap()
+    .approve(&users, "maria", "pw")
+    .unwrap();
+    let report =
+        compensation::apply(&link, &CompensationLimits::default(), &mut audit, approved).unwrap();
+    assert_eq!(report.steps, 2);
+    assert_eq!(
+        link.read_compensation().wait().unwrap().get(backlash),
+        Some(7.0)
+    );
+}
