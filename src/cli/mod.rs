@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod audit;
+mod backlash;
 mod calibrate;
 mod compensate;
 mod estimate;
@@ -35,6 +36,10 @@ enum Command {
     Inspect(inspect::Args),
     /// Multiple regression with F-test, R², t/p/CI, sensitivity and optional term selection.
     Fit(fit::Args),
+    /// Measure backlash from a backlash-test recording (current rise once the table is driven).
+    Backlash(backlash::Args),
+    /// Write the NC program of the backlash test (under 10 minutes of machine time).
+    BacklashProgram(backlash::ProgramArgs),
     /// Fit every estimator from a simulation database and a few experiments (Eqs. 7–15).
     Calibrate(calibrate::Args),
     /// Run every estimator over a recording; score against reference columns (Table 3).
@@ -58,6 +63,8 @@ pub fn run() -> ExitCode {
         Some(Command::Simulate(args)) => simulate::run(args),
         Some(Command::Inspect(args)) => inspect::run(args),
         Some(Command::Fit(args)) => fit::run(args),
+        Some(Command::Backlash(args)) => backlash::run(args),
+        Some(Command::BacklashProgram(args)) => backlash::run_program(args),
         Some(Command::Calibrate(args)) => calibrate::run(args),
         Some(Command::Estimate(args)) => estimate::run(args),
         Some(Command::RegisterMap(args)) => register_map::run(args),

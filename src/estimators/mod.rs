@@ -4,9 +4,11 @@
 //! - [`streaming`]: one streaming estimator per estimate (Eqs. 7–15).
 //! - [`pipeline`]: every estimator of a machine, bound to a frame layout.
 //! - [`calibration`]: fits the models from a simulation database and a few experiments.
+//! - [`backlash`]: backlash from a reciprocating test (Sect. 3.3) and its NC program.
 //! - [`accuracy`]: runs the pipeline over a recording and scores it against reference columns.
 
 pub mod accuracy;
+pub mod backlash;
 pub mod calibration;
 pub mod models;
 pub mod pipeline;
