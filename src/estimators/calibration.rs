@@ -380,9 +380,18 @@ fn fit_best(
     }
     let count = per_recording.first().map_or(0, Vec::len);
     let mut best: Option<(f64, Fitted)> = None;
+    let mut last_error = None;
     for c in 0..count {
         let columns = stack(&per_recording, c);
-        let mut fitted = fit_columns(estimate, symbol, target, y.clone(), columns)?;
+        // A candidate whose terms are collinear on this database (the room term can be a
+        // combination of estimated temperatures) is not an error while another one fits.
+        let mut fitted = match fit_columns(estimate, symbol, target, y.clone(), columns) {
+            Ok(fitted) => fitted,
+            Err(e) => {
+                last_error = Some(e);
+                continue;
+            }
+        };
         let score = if y_experiment.len() >= MIN_EXPERIMENT_ROWS {
             let columns = stack(&per_experiment, c);
             let predicted = predict(&fitted.model.coefficients, &columns, y_experiment.len());
@@ -396,11 +405,14 @@ fn fit_best(
             best = Some((score, fitted));
         }
     }
-    best.map(|(_, f)| f)
-        .ok_or_else(|| CalibrationError::NoData {
+    match (best, last_error) {
+        (Some((_, fitted)), _) => Ok(fitted),
+        (None, Some(error)) => Err(error),
+        (None, None) => Err(CalibrationError::NoData {
             estimate: estimate.to_string(),
             message: "no candidate model".into(),
-        })
+        }),
+    }
 }
 
 /// c₀ + Σ cᵢ·xᵢ for every row.

@@ -9,7 +9,7 @@ use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 use super::models::AxisModels;
 use super::streaming::{
     ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, SpindleElongationEstimator,
-    StraightnessEstimator, TorqueSplit, TorqueSplitEstimator,
+    StraightnessEstimator, TorqueSplit, TorqueSplitEstimator, minimum_zone_straightness,
 };
 
 /// Why a pipeline could not be built.
@@ -57,10 +57,30 @@ pub struct FeedAxisEstimate {
     pub straightness_v_um: [f64; MAX_NODES],
     /// Number of straightness nodes (0 without straightness models).
     pub nodes: usize,
-    /// ISO 1101 horizontal straightness over the nodes, µm.
-    pub straightness_h_zone_um: f64,
-    /// ISO 1101 vertical straightness over the nodes, µm.
-    pub straightness_v_zone_um: f64,
+    /// Positions of the nodes along the stroke, mm.
+    pub node_positions_mm: [f64; MAX_NODES],
+}
+
+impl FeedAxisEstimate {
+    /// ISO 1101 horizontal straightness over the nodes (minimum zone), µm.
+    pub fn straightness_h_zone_um(&self) -> f64 {
+        self.zone(&self.straightness_h_um)
+    }
+
+    /// ISO 1101 vertical straightness over the nodes (minimum zone), µm.
+    pub fn straightness_v_zone_um(&self) -> f64 {
+        self.zone(&self.straightness_v_um)
+    }
+
+    fn zone(&self, deviations: &[f64; MAX_NODES]) -> f64 {
+        if self.nodes < 2 {
+            return f64::NAN;
+        }
+        minimum_zone_straightness(
+            &self.node_positions_mm[..self.nodes],
+            &deviations[..self.nodes],
+        )
+    }
 }
 
 impl Default for FeedAxisEstimate {
@@ -79,8 +99,7 @@ impl Default for FeedAxisEstimate {
             straightness_h_um: [f64::NAN; MAX_NODES],
             straightness_v_um: [f64::NAN; MAX_NODES],
             nodes: 0,
-            straightness_h_zone_um: f64::NAN,
-            straightness_v_zone_um: f64::NAN,
+            node_positions_mm: [f64::NAN; MAX_NODES],
         }
     }
 }
@@ -231,7 +250,13 @@ impl EstimatorPipeline {
                             &models.straightness_v,
                             "vertical straightness",
                         )?,
-                        estimate: FeedAxisEstimate::default(),
+                        estimate: {
+                            let mut estimate = FeedAxisEstimate::default();
+                            for (slot, x) in estimate.node_positions_mm.iter_mut().zip(&positions) {
+                                *slot = *x;
+                            }
+                            estimate
+                        },
                     });
                 }
                 AxisKind::Spindle => {
@@ -290,7 +315,7 @@ impl EstimatorPipeline {
             let motor = e.motor_flange_C;
             if let Some(h) = &axis.straightness_h {
                 e.nodes = h.nodes();
-                e.straightness_h_zone_um = h.update(
+                h.update(
                     e.front_bearing_C,
                     e.back_bearing_C,
                     motor,
@@ -300,7 +325,7 @@ impl EstimatorPipeline {
             }
             if let Some(v) = &axis.straightness_v {
                 e.nodes = v.nodes();
-                e.straightness_v_zone_um = v.update(
+                v.update(
                     e.front_bearing_C,
                     e.back_bearing_C,
                     motor,
@@ -452,12 +477,12 @@ impl EstimatorPipeline {
                 (
                     &axis.straightness_h,
                     &e.straightness_h_um,
-                    e.straightness_h_zone_um,
+                    e.straightness_h_zone_um(),
                 ),
                 (
                     &axis.straightness_v,
                     &e.straightness_v_um,
-                    e.straightness_v_zone_um,
+                    e.straightness_v_zone_um(),
                 ),
             ] {
                 if let Some(s) = estimator {

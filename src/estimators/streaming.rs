@@ -223,7 +223,8 @@ impl StraightnessEstimator {
         })
     }
 
-    /// Fills `out` with each node's deviation (µm) and returns the minimum-zone value (µm).
+    /// Fills `out` with each node's deviation, µm. The ISO 1101 value is a pure function of
+    /// these and is computed when read ([`minimum_zone_straightness`]), not on every frame.
     #[inline]
     pub fn update(
         &self,
@@ -232,7 +233,7 @@ impl StraightnessEstimator {
         motor_C: f64,
         ambient_C: f64,
         out: &mut [f64; MAX_NODES],
-    ) -> f64 {
+    ) {
         let (f2, b2, m2) = (front_C * front_C, back_C * back_C, motor_C * motor_C);
         let features = [
             1.0,
@@ -250,7 +251,11 @@ impl StraightnessEstimator {
         for (slot, model) in out.iter_mut().zip(&self.models) {
             *slot = model.eval(&features);
         }
-        minimum_zone_straightness(&self.positions_mm, &out[..self.models.len()])
+    }
+
+    /// Node positions along the stroke, mm.
+    pub fn positions_mm(&self) -> &[f64] {
+        &self.positions_mm
     }
 
     /// Number of nodes.
