@@ -244,3 +244,77 @@ fn estimate_refuses_an_uncalibrated_profile_and_missing_columns() {
     assert!(!run.status.success());
     assert!(stderr(&run).contains("broken.toml"), "{}", stderr(&run));
 }
+
+/// The preload diagnosis tells preload loss from wear friction on twin runs where each was
+/// injected, and a healthy machine from both (issue 4's proof).
+#[test]
+fn fingerprint_tells_preload_loss_from_wear() {
+    let dir = tempfile::tempdir().unwrap();
+    let warmup = |name: &str, seed: &str, set: Option<&str>| {
+        let mut args = vec!["--scenario", "warmup", "--hours", "0.1", "--seed", seed];
+        if let Some(set) = set {
+            args.extend_from_slice(&["--set", set]);
+        }
+        simulate(dir.path(), name, &args)
+    };
+    let baseline = dir.path().join("baseline.json");
+    let healthy = warmup("healthy.csv", "1", None);
+    let run = servosight(&[
+        "fingerprint",
+        "--recording",
+        arg(&healthy),
+        "--axis",
+        "X",
+        "--save-baseline",
+        arg(&baseline),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    for (name, seed, set, expected) in [
+        ("again.csv", "2", None, "normal"),
+        (
+            "loose.csv",
+            "3",
+            Some("x_axis.nut_preload_N=700"),
+            "preload_loss",
+        ),
+        (
+            "worn.csv",
+            "4",
+            Some("x_axis.front_bearing.f0=12"),
+            "friction_rise",
+        ),
+    ] {
+        let recording = warmup(name, seed, set);
+        let json = dir.path().join("fp.json");
+        let run = servosight(&[
+            "fingerprint",
+            "--recording",
+            arg(&recording),
+            "--axis",
+            "X",
+            "--baseline",
+            arg(&baseline),
+            "--json",
+            arg(&json),
+        ]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(
+            report["preload"]["state"], expected,
+            "{name}: {}",
+            report["preload"]["evidence"]
+        );
+        let warned = report["drift"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|d| d["warning"] == true);
+        assert_eq!(
+            warned,
+            expected != "normal",
+            "{name}: drift warnings {}",
+            report["drift"]
+        );
+    }
+}

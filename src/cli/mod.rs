@@ -12,6 +12,7 @@ mod backlash;
 mod calibrate;
 mod compensate;
 mod estimate;
+mod fingerprint;
 mod fit;
 pub mod inspect;
 mod record;
@@ -44,6 +45,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Run every estimator over a recording; score against reference columns (Table 3).
     Estimate(estimate::Args),
+    /// Friction fingerprint of an axis from its warm-up moves, trended, with the preload diagnosis.
+    Fingerprint(fingerprint::Args),
     /// Print the Modbus register map (JSON, or the Markdown tables of docs/register-map.md).
     RegisterMap(register_map::Args),
     /// Record every frame a controller sends (Modbus RTU) to a CSV v1 file.
@@ -67,6 +70,7 @@ pub fn run() -> ExitCode {
         Some(Command::BacklashProgram(args)) => backlash::run_program(args),
         Some(Command::Calibrate(args)) => calibrate::run(args),
         Some(Command::Estimate(args)) => estimate::run(args),
+        Some(Command::Fingerprint(args)) => fingerprint::run(args),
         Some(Command::RegisterMap(args)) => register_map::run(args),
         Some(Command::Record(args)) => record::run(args),
         Some(Command::Compensate(args)) => compensate::run(args),

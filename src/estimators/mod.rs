@@ -5,11 +5,13 @@
 //! - [`pipeline`]: every estimator of a machine, bound to a frame layout.
 //! - [`calibration`]: fits the models from a simulation database and a few experiments.
 //! - [`backlash`]: backlash from a reciprocating test (Sect. 3.3) and its NC program.
+//! - [`fingerprint`]: friction fingerprint, its trend, and the preload diagnosis.
 //! - [`accuracy`]: runs the pipeline over a recording and scores it against reference columns.
 
 pub mod accuracy;
 pub mod backlash;
 pub mod calibration;
+pub mod fingerprint;
 pub mod models;
 pub mod pipeline;
 pub mod streaming;
