@@ -318,3 +318,72 @@ fn fingerprint_tells_preload_loss_from_wear() {
         );
     }
 }
+
+/// The spindle torque per mm of depth matches the twin's cutting model (k_c·f·r), and the
+/// recommendation is the smallest component limit, named.
+#[test]
+fn depth_of_cut_matches_the_cutting_force_model_and_names_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = simulate(
+        dir.path(),
+        "day.csv",
+        &["--scenario", "production", "--hours", "2", "--seed", "5"],
+    );
+    let json = dir.path().join("doc.json");
+    let run = servosight(&[
+        "depth-of-cut",
+        "--recording",
+        arg(&rec),
+        "--json",
+        arg(&json),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let feed = r["feed_per_rev_mm"].as_f64().unwrap();
+    let components = r["components"].as_array().unwrap();
+    let spindle_torque = components
+        .iter()
+        .find(|c| c["component"] == "S motor torque")
+        .unwrap();
+    // Twin: F_c = 2000 N/mm² · a_p · f on the Ø80 mm workpiece's 40 mm radius.
+    let expected = 2000.0 * feed * 0.040;
+    let per_mm = spindle_torque["load_per_mm"].as_f64().unwrap();
+    assert!(
+        (per_mm / expected - 1.0).abs() < 0.05,
+        "{per_mm} N·m/mm vs {expected}"
+    );
+    let smallest = components
+        .iter()
+        .map(|c| c["max_depth_mm"].as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min);
+    let recommended = r["recommended_depth_mm"].as_f64().unwrap();
+    assert!(
+        recommended <= smallest && recommended > smallest - 0.11,
+        "{recommended} vs {smallest}"
+    );
+    assert_eq!(r["limiting_component"], components[0]["component"]);
+    assert!(
+        r["reason"]
+            .as_str()
+            .unwrap()
+            .contains(components[0]["component"].as_str().unwrap())
+    );
+}
+
+#[test]
+fn depth_of_cut_needs_cuts() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = simulate(
+        dir.path(),
+        "warm.csv",
+        &["--scenario", "warmup", "--hours", "0.1"],
+    );
+    let run = servosight(&["depth-of-cut", "--recording", arg(&rec)]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("too few cutting samples"),
+        "{}",
+        stderr(&run)
+    );
+}

@@ -11,6 +11,7 @@ mod audit;
 mod backlash;
 mod calibrate;
 mod compensate;
+mod depth_of_cut;
 mod estimate;
 mod fingerprint;
 mod fit;
@@ -43,6 +44,8 @@ enum Command {
     BacklashProgram(backlash::ProgramArgs),
     /// Fit every estimator from a simulation database and a few experiments (Eqs. 7–15).
     Calibrate(calibrate::Args),
+    /// Recommend the maximum rough-cut depth from the loads measured during cuts.
+    DepthOfCut(depth_of_cut::Args),
     /// Run every estimator over a recording; score against reference columns (Table 3).
     Estimate(estimate::Args),
     /// Friction fingerprint of an axis from its warm-up moves, trended, with the preload diagnosis.
@@ -69,6 +72,7 @@ pub fn run() -> ExitCode {
         Some(Command::Backlash(args)) => backlash::run(args),
         Some(Command::BacklashProgram(args)) => backlash::run_program(args),
         Some(Command::Calibrate(args)) => calibrate::run(args),
+        Some(Command::DepthOfCut(args)) => depth_of_cut::run(args),
         Some(Command::Estimate(args)) => estimate::run(args),
         Some(Command::Fingerprint(args)) => fingerprint::run(args),
         Some(Command::RegisterMap(args)) => register_map::run(args),
