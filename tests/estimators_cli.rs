@@ -387,3 +387,32 @@ fn depth_of_cut_needs_cuts() {
         stderr(&run)
     );
 }
+
+/// The shipped profile of the twin's machine loads, is calibrated, and binds to the frames the
+/// twin (and so the embedded HMI source) produces.
+#[test]
+fn shipped_twin_profile_binds_to_twin_frames() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+    let profile = servosight::profile::MachineProfile::load(&path).unwrap();
+    assert!(profile.calibration.is_some());
+    let twin = servosight::sim::Twin::new(servosight::sim::TwinConfig::new(
+        servosight::sim::ScenarioKind::Production,
+        Some(0.1),
+        1,
+    ))
+    .unwrap();
+    let mut pipeline =
+        servosight::estimators::EstimatorPipeline::new(&profile, twin.schema()).unwrap();
+    let outputs = pipeline.outputs();
+    assert!(
+        outputs.iter().any(|o| o.id == "nut_temp")
+            && outputs.iter().any(|o| o.id == "spindle_elongation")
+    );
+    let mut twin = twin;
+    let mut row = Vec::new();
+    while twin.next_row(&mut row) {
+        pipeline.update(&row);
+    }
+    let x = pipeline.feed_axis(servosight::signal::AxisId::X).unwrap();
+    assert!(x.nut_C.is_finite() && x.straightness_v_zone_um() >= 0.0);
+}
