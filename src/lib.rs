@@ -12,9 +12,11 @@
 //! - [`link`]: frame sources (replay, embedded twin, Modbus RTU controller), the register map,
 //!   the recorder, and the controller end of the map (`sim-controller`).
 //! - [`compensation`]: approved, bounded, verified and audited compensation writes.
+//! - [`ui`]: the HMI (eframe/egui): session worker, decimated history, view models, panels.
 
 pub mod compensation;
 pub mod fit;
 pub mod link;
 pub mod signal;
 pub mod sim;
+pub mod ui;
