@@ -307,3 +307,82 @@ fn trends_and_events_controls_work() {
     settle(h);
     assert!(!shows(h, "embedded twin connected"));
 }
+
+/// A DOE database from the twin, written as CSV v1.
+fn database(dir: &std::path::Path, hours: f64) -> std::path::PathBuf {
+    let path = dir.join("doe.csv");
+    let recording = servosight::sim::simulate(TwinConfig::new(ScenarioKind::Doe, Some(hours), 1))
+        .expect("the twin runs");
+    servosight::signal::write_recording(&path, &recording).expect("database written");
+    path
+}
+
+#[test]
+fn the_model_lab_fits_off_the_ui_thread_and_shows_the_ranking() {
+    let mut f = start();
+    let data = database(f._dir.path(), 1.0);
+    let h = &mut f.harness;
+    click(h, "Model lab");
+    type_into(h, "Database (CSV v1)", data.to_str().expect("utf-8 path"));
+    type_into(h, "Target column", "ref.X.motor_flange_temp_C");
+    type_into(h, "Terms", "X.stator_temp_C, X.speed_rpm, ambient_C");
+    click(h, "Fit");
+    step_until(h, "the fit", |app| {
+        app.state.model_lab.result.is_some() || app.state.model_lab.error.is_some()
+    });
+    settle(h);
+    let lab = &h.state().state.model_lab;
+    assert_eq!(lab.error, None);
+    let report = &lab.result.as_ref().expect("a result").report;
+    assert_eq!(report.n, 3601, "0 s to 3600 s inclusive");
+    // The same numbers as the library computes directly from the file.
+    let recording = servosight::signal::read_recording(&data).expect("database reads");
+    let terms =
+        servosight::fit::parse_terms("X.stator_temp_C, X.speed_rpm, ambient_C").expect("terms");
+    let design =
+        servosight::fit::Design::from_recording(&recording, "ref.X.motor_flange_temp_C", &terms)
+            .expect("design");
+    let direct = servosight::fit::ols(&design).expect("fit");
+    assert_eq!(report.r2, direct.r2);
+    assert_eq!(report.coefficients, direct.coefficients);
+    assert_eq!(report.sensitivity[0].rank, 1);
+    assert!(shows(h, "Sensitivity ranking"));
+    assert!(shows(h, &format!("n = {}", report.n)));
+}
+
+#[test]
+fn a_cancelled_fit_stops_while_reading() {
+    use servosight::ui::jobs::{FitRequest, JobContext, JobStop, run_fit};
+    use std::sync::{Arc, atomic::AtomicBool};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = database(dir.path(), 3.0);
+    let request = FitRequest {
+        data,
+        target: "ref.X.motor_flange_temp_C".into(),
+        terms: "X.stator_temp_C".into(),
+    };
+    let (tx, rx) = std::sync::mpsc::sync_channel(1024);
+    let cancelled = JobContext::new(tx.clone(), Arc::new(AtomicBool::new(true)));
+    assert_eq!(
+        run_fit(request.clone(), &cancelled).err(),
+        Some(JobStop::Cancelled)
+    );
+    let running = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
+    let outcome = run_fit(request, &running).expect("the fit runs");
+    assert_eq!(outcome.report.n, 10_801, "0 s to 10800 s inclusive");
+    let stages: Vec<String> = rx
+        .try_iter()
+        .filter_map(|m| match m {
+            servosight::ui::jobs::JobMessage::Progress(p) => Some(p.stage),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        stages.iter().any(|s| s.starts_with("reading")),
+        "{stages:?}"
+    );
+    assert!(
+        stages.iter().any(|s| s.starts_with("fitting")),
+        "{stages:?}"
+    );
+}

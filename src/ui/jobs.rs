@@ -97,6 +97,12 @@ pub struct JobContext<T> {
 }
 
 impl<T> JobContext<T> {
+    /// A context for running a job's work on the current thread (headless use, tests):
+    /// messages go to `messages`, and the work stops once `cancel` is set.
+    pub fn new(messages: mpsc::SyncSender<JobMessage<T>>, cancel: Arc<AtomicBool>) -> Self {
+        JobContext { messages, cancel }
+    }
+
     /// Reports progress; a full queue skips this report (a newer one follows).
     pub fn progress(&self, stage: &str, fraction: Option<f32>) {
         let _ = self.messages.try_send(JobMessage::Progress(JobProgress {
