@@ -386,3 +386,22 @@ fn a_cancelled_fit_stops_while_reading() {
         "{stages:?}"
     );
 }
+
+#[test]
+fn the_hmi_command_reports_a_bad_source_before_opening_a_window() {
+    use crate::common::{servosight, stderr};
+    let output = servosight(&["--replay", "/nonexistent/day.csv"]);
+    assert!(!output.status.success());
+    let message = stderr(&output);
+    assert_eq!(message.lines().count(), 1, "{message}");
+    assert!(message.contains("/nonexistent/day.csv"), "{message}");
+    let both = servosight(&["--replay", "a.csv", "--port", "/dev/null"]);
+    assert!(!both.status.success());
+    assert!(
+        stderr(&both).contains("cannot be used with"),
+        "{}",
+        stderr(&both)
+    );
+    let with_subcommand = servosight(&["--speed", "2", "inspect", "a.csv"]);
+    assert!(!with_subcommand.status.success());
+}
