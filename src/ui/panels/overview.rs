@@ -25,26 +25,29 @@ fn card_ui(ui: &mut egui::Ui, card: &AxisCard) {
     egui::Frame::group(ui.style())
         .inner_margin(10.0)
         .show(ui, |ui| {
-            ui.set_min_width(260.0);
-            ui.horizontal(|ui| {
-                ui.heading(&card.title);
-            });
-            ui.horizontal(|ui| light(ui, card.light.severity, 18.0));
-            for reason in &card.light.reasons {
-                ui.label(reason);
+            // Cards sit in a wrapping row; their content runs top to bottom.
+            ui.vertical(|ui| card_content(ui, card));
+        });
+}
+
+fn card_content(ui: &mut egui::Ui, card: &AxisCard) {
+    ui.set_width(300.0);
+    ui.heading(&card.title);
+    ui.horizontal(|ui| light(ui, card.light.severity, 18.0));
+    for reason in &card.light.reasons {
+        ui.label(reason);
+    }
+    if card.readings_are_old {
+        ui.weak("last known values (not live)");
+    }
+    ui.separator();
+    egui::Grid::new(("axis readings", &card.axis))
+        .num_columns(2)
+        .spacing([16.0, 4.0])
+        .show(ui, |ui| {
+            for reading in &card.readings {
+                reading_row(ui, reading, card.readings_are_old);
             }
-            if card.readings_are_old {
-                ui.weak("last known values (not live)");
-            }
-            ui.separator();
-            egui::Grid::new(("axis readings", &card.axis))
-                .num_columns(2)
-                .spacing([16.0, 4.0])
-                .show(ui, |ui| {
-                    for reading in &card.readings {
-                        reading_row(ui, reading, card.readings_are_old);
-                    }
-                });
         });
 }
 

@@ -2,7 +2,7 @@
 //! linked), CSV export.
 
 use eframe::egui;
-use egui_plot::{Legend, Line, Plot, PlotPoints};
+use egui_plot::{ColorConflictHandling, Legend, Line, Plot, PlotPoints};
 
 use super::{Forms, UiCommand, labelled_text};
 use crate::ui::vm::trends::{TrendsView, WindowPreset};
@@ -90,7 +90,10 @@ pub fn trends_ui(
                 colour += plot_view.series.len();
                 let response = Plot::new(("trend plot", &plot_view.unit))
                     .height(height)
-                    .legend(Legend::default())
+                    .legend(
+                        // The band shares its series' name; the legend shows the line's colour.
+                        Legend::default().color_conflict_handling(ColorConflictHandling::PickFirst),
+                    )
                     .link_axis(egui::Id::unique("trend time axis"), [true, false])
                     .link_cursor(egui::Id::unique("trend time axis"), [true, false])
                     .x_axis_label("machine time [s]")
@@ -106,6 +109,14 @@ pub fn trends_ui(
                         }
                         for (k, series) in plot_view.series.iter().enumerate() {
                             let color = PALETTE[(first_colour + k) % PALETTE.len()];
+                            plot_ui.line(
+                                Line::new(
+                                    series.label.clone(),
+                                    PlotPoints::new(series.points.clone()),
+                                )
+                                .color(color)
+                                .width(1.5),
+                            );
                             if let Some((min, max)) = &series.band {
                                 let faint = color.gamma_multiply(0.35);
                                 plot_ui.line(
@@ -119,14 +130,6 @@ pub fn trends_ui(
                                         .width(1.0),
                                 );
                             }
-                            plot_ui.line(
-                                Line::new(
-                                    series.label.clone(),
-                                    PlotPoints::new(series.points.clone()),
-                                )
-                                .color(color)
-                                .width(1.5),
-                            );
                         }
                     });
                 let interacted = response.response.dragged()
