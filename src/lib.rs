@@ -14,6 +14,7 @@
 //! - [`link`]: frame sources (replay, embedded twin, Modbus RTU controller), the register map,
 //!   the recorder, and the controller end of the map (`sim-controller`).
 //! - [`compensation`]: approved, bounded, verified and audited compensation writes.
+//! - [`ui`]: the HMI (eframe/egui): session worker, decimated history, view models, panels.
 
 pub mod compensation;
 pub mod estimators;
@@ -22,3 +23,4 @@ pub mod link;
 pub mod profile;
 pub mod signal;
 pub mod sim;
+pub mod ui;

@@ -7,3 +7,5 @@ mod link_replay;
 mod modbus_peer;
 mod recording_format;
 mod simulate_cli;
+mod ui_hmi;
+mod ui_view_models;

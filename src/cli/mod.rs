@@ -15,6 +15,7 @@ mod depth_of_cut;
 mod estimate;
 mod fingerprint;
 mod fit;
+mod hmi;
 pub mod inspect;
 mod record;
 mod register_map;
@@ -25,7 +26,11 @@ mod simulate;
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
 #[derive(Debug, Parser)]
 #[command(name = "servosight", version, about, long_about = None)]
+#[command(args_conflicts_with_subcommands = true)]
 struct Cli {
+    /// With no subcommand: open the HMI (on the embedded twin unless --replay or --port).
+    #[command(flatten)]
+    hmi: hmi::Args,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -60,6 +65,8 @@ enum Command {
     Audit(audit::Args),
     /// Serve a recording as a Modbus RTU controller speaking the register map.
     SimController(sim_controller::Args),
+    /// Headless: simulate a 10-hour production day on the twin and summarise it.
+    DaySummary,
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -80,7 +87,8 @@ pub fn run() -> ExitCode {
         Some(Command::Compensate(args)) => compensate::run(args),
         Some(Command::Audit(args)) => audit::run(args),
         Some(Command::SimController(args)) => sim_controller::run(args),
-        None => simulate::run_default_day(),
+        Some(Command::DaySummary) => simulate::run_default_day(),
+        None => hmi::run(cli.hmi),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

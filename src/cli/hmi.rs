@@ -1,0 +1,198 @@
+//! The HMI's command line: `servosight` with no subcommand opens the window on the embedded
+//! twin; `--replay FILE` or `--port DEV` choose the other sources.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::Context;
+use servosight::compensation::CompensationLimits;
+use servosight::link::{ModbusConfig, Parity, ReplayOptions, ReplaySpeed};
+use servosight::sim::{ScenarioKind, TwinConfig};
+use servosight::ui::state::{StatusThresholds, Threshold};
+use servosight::ui::{HmiOptions, SessionConfig, SourceSpec};
+
+/// Options of the HMI (given without a subcommand).
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Replay this recording (CSV v1) instead of running the embedded twin.
+    #[arg(long, value_name = "FILE", conflicts_with = "port")]
+    pub replay: Option<PathBuf>,
+    /// Read a controller over Modbus RTU on this serial device instead of the twin.
+    #[arg(long, value_name = "DEV")]
+    pub port: Option<String>,
+    /// Seconds of machine time per second of wall clock (twin and replay).
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// The twin's program: warmup, production, backlash-test or doe.
+    #[arg(long, default_value = "production", value_parser = parse_scenario)]
+    pub scenario: ScenarioKind,
+    /// The twin's sample rate, Hz.
+    #[arg(long, default_value_t = 10.0)]
+    pub rate: f64,
+    /// The twin's seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Baud rate (with --port).
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// Parity (with --port): none, even or odd.
+    #[arg(long, default_value = "none")]
+    pub parity: Parity,
+    /// Stop bits (with --port).
+    #[arg(long, default_value_t = 1)]
+    pub stop_bits: u8,
+    /// Modbus slave id (with --port).
+    #[arg(long, default_value_t = 1)]
+    pub slave: u8,
+    /// Polls per second (with --port).
+    #[arg(long, default_value_t = 50.0)]
+    pub poll_hz: f64,
+    /// Reply timeout, ms (with --port).
+    #[arg(long, default_value_t = 200)]
+    pub timeout_ms: u64,
+    /// Where recordings, the users file and the audit log live (default: the user's data
+    /// directory, e.g. ~/.local/share/servosight).
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
+    /// Record into this directory (default: DATA_DIR/recordings).
+    #[arg(long, value_name = "DIR")]
+    pub record_dir: Option<PathBuf>,
+    /// Start with the recorder off.
+    #[arg(long)]
+    pub no_record: bool,
+    /// The users file (default: DATA_DIR/users.toml; add users with `compensate set-user`).
+    #[arg(long, value_name = "FILE")]
+    pub users: Option<PathBuf>,
+    /// The compensation audit log (default: DATA_DIR/audit.jsonl).
+    #[arg(long, value_name = "FILE")]
+    pub audit: Option<PathBuf>,
+    /// A TOML file with a `[compensation_limits]` table; conservative built-in limits
+    /// otherwise.
+    #[arg(long, value_name = "FILE")]
+    pub limits: Option<PathBuf>,
+    /// Layout and theme file (default: ~/.config/servosight/hmi.json).
+    #[arg(long, value_name = "FILE")]
+    pub settings: Option<PathBuf>,
+    /// Stator temperature warning limit, °C.
+    #[arg(long, default_value_t = StatusThresholds::default().stator_temp_c.warning)]
+    pub stator_warning_c: f64,
+    /// Stator temperature fault limit, °C.
+    #[arg(long, default_value_t = StatusThresholds::default().stator_temp_c.fault)]
+    pub stator_fault_c: f64,
+}
+
+fn parse_scenario(s: &str) -> Result<ScenarioKind, String> {
+    s.parse()
+}
+
+fn home_dir(var: &str, fallback: &str) -> Option<PathBuf> {
+    std::env::var_os(var)
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| {
+            std::env::var_os("HOME")
+                .filter(|v| !v.is_empty())
+                .map(|h| PathBuf::from(h).join(fallback))
+        })
+}
+
+fn load_limits(path: Option<&Path>) -> anyhow::Result<CompensationLimits> {
+    #[derive(serde::Deserialize)]
+    struct Profile {
+        compensation_limits: CompensationLimits,
+    }
+    match path {
+        None => Ok(CompensationLimits::default()),
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            let profile: Profile = toml::from_str(&text)
+                .with_context(|| format!("{}: no valid [compensation_limits]", path.display()))?;
+            Ok(profile.compensation_limits)
+        }
+    }
+}
+
+/// Opens the HMI.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if !(args.speed.is_finite() && args.speed > 0.0) {
+        anyhow::bail!("--speed must be a positive number (got {})", args.speed);
+    }
+    let ordered = args.stator_warning_c.partial_cmp(&args.stator_fault_c);
+    if ordered.is_none_or(|o| o.is_ge()) {
+        anyhow::bail!("--stator-warning-c must be below --stator-fault-c");
+    }
+    let data_dir = args
+        .data_dir
+        .clone()
+        .or_else(|| home_dir("XDG_DATA_HOME", ".local/share").map(|d| d.join("servosight")))
+        .unwrap_or_else(|| PathBuf::from("servosight-data"));
+    let settings_path = args.settings.clone().or_else(|| {
+        home_dir("XDG_CONFIG_HOME", ".config").map(|d| d.join("servosight").join("hmi.json"))
+    });
+    let speed = ReplaySpeed::Factor(args.speed);
+    let source = match (&args.replay, &args.port) {
+        (Some(path), _) => SourceSpec::Replay {
+            path: path.clone(),
+            options: ReplayOptions {
+                speed,
+                ..ReplayOptions::default()
+            },
+        },
+        (None, Some(port)) => {
+            let mut config = ModbusConfig::new(port);
+            config.baud = args.baud;
+            config.parity = args.parity;
+            config.stop_bits = args.stop_bits;
+            config.slave = args.slave;
+            config.poll_hz = args.poll_hz;
+            config.request_timeout = Duration::from_millis(args.timeout_ms);
+            SourceSpec::Serial(config)
+        }
+        (None, None) => {
+            let mut config = TwinConfig::new(args.scenario, None, args.seed);
+            config.rate_hz = args.rate;
+            SourceSpec::Twin {
+                config: Box::new(config),
+                speed,
+            }
+        }
+    };
+    let users_path = args
+        .users
+        .clone()
+        .unwrap_or_else(|| data_dir.join("users.toml"));
+    let audit_path = args
+        .audit
+        .clone()
+        .unwrap_or_else(|| data_dir.join("audit.jsonl"));
+    let limits = load_limits(args.limits.as_deref())?;
+    let record_dir = (!args.no_record).then(|| {
+        args.record_dir
+            .clone()
+            .unwrap_or_else(|| data_dir.join("recordings"))
+    });
+    let session = SessionConfig {
+        source,
+        record_dir,
+        users_path: users_path.clone(),
+        audit_path: audit_path.clone(),
+        limits,
+    };
+    let options = HmiOptions {
+        settings_path,
+        history_budget_bytes: servosight::ui::history::DEFAULT_HISTORY_BUDGET_BYTES,
+        thresholds: StatusThresholds {
+            stator_temp_c: Threshold {
+                warning: args.stator_warning_c,
+                fault: args.stator_fault_c,
+            },
+        },
+        users_path,
+        audit_path,
+        limits,
+        ingest_budget: Duration::from_millis(4),
+    };
+    servosight::ui::run(session, options).context("the HMI")?;
+    Ok(())
+}
