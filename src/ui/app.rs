@@ -95,7 +95,7 @@ pub struct HmiOptions {
 /// Most events listed at once.
 const EVENT_ROWS: usize = 2000;
 /// Points per series on the Trends plots.
-const TREND_POINTS: usize = 1500;
+const TREND_POINTS: usize = 1000;
 /// How often settings are saved while running.
 const SAVE_EVERY: Duration = Duration::from_secs(10);
 
