@@ -405,3 +405,31 @@ fn the_hmi_command_reports_a_bad_source_before_opening_a_window() {
     let with_subcommand = servosight(&["--speed", "2", "inspect", "a.csv"]);
     assert!(!with_subcommand.status.success());
 }
+
+#[test]
+fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
+    use servosight::ui::Settings;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("config").join("hmi.json");
+    assert_eq!(Settings::load(&path), Settings::default(), "no file yet");
+    let mut settings = Settings {
+        tab: Tab::Trends,
+        dark: false,
+        window_size: Some([1200.0, 700.0]),
+        ..Settings::default()
+    };
+    settings.trends.selected = vec!["X.load_pct".into()];
+    settings.forms.operator = "otto".into();
+    settings.forms.password = "never saved".into();
+    settings.save(&path).expect("saved");
+    let text = std::fs::read_to_string(&path).expect("written");
+    assert!(!text.contains("never saved"), "passwords are not persisted");
+    let back = Settings::load(&path);
+    assert_eq!(back.tab, Tab::Trends);
+    assert!(!back.dark);
+    assert_eq!(back.window_size, Some([1200.0, 700.0]));
+    assert_eq!(back.trends.selected, vec!["X.load_pct".to_string()]);
+    assert_eq!(back.forms.operator, "otto");
+    std::fs::write(&path, "{ not json").expect("written");
+    assert_eq!(Settings::load(&path), Settings::default());
+}
