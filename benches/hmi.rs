@@ -187,6 +187,7 @@ fn latency_report() {
         users_path: std::env::temp_dir().join("servosight-bench-users.toml"),
         audit_path: std::env::temp_dir().join("servosight-bench-audit.jsonl"),
         limits: CompensationLimits::default(),
+        profile: None,
     };
     let Ok(mut session) = Session::start(config) else {
         eprintln!("latency: the session did not start");

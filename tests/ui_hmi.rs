@@ -23,6 +23,11 @@ struct Fixture {
     harness: Harness<'static, HmiApp>,
 }
 
+fn twin_profile() -> servosight::profile::MachineProfile {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/it25-twin.toml");
+    servosight::profile::MachineProfile::load(std::path::Path::new(path)).expect("twin profile")
+}
+
 fn start() -> Fixture {
     let dir = tempfile::tempdir().expect("temp dir");
     let users_path = dir.path().join("users.toml");
@@ -47,6 +52,7 @@ fn start() -> Fixture {
         users_path: users_path.clone(),
         audit_path: audit_path.clone(),
         limits: CompensationLimits::default(),
+        profile: Some(twin_profile()),
     };
     let session = Session::start(config).expect("session starts");
     let app = HmiApp::new(
@@ -55,6 +61,11 @@ fn start() -> Fixture {
             settings_path: None,
             history_budget_bytes: 16 << 20,
             thresholds: StatusThresholds::default(),
+            estimate_limits: twin_profile()
+                .axes
+                .iter()
+                .map(|(axis, a)| (*axis, a.limits.clone()))
+                .collect(),
             users_path,
             audit_path: audit_path.clone(),
             limits: CompensationLimits::default(),
@@ -287,6 +298,10 @@ fn trends_and_events_controls_work() {
     let mut f = start();
     let h = &mut f.harness;
     step_until(h, "some history", |app| app.state.history.samples() > 5);
+    // The estimators run on the live frames: the Overview shows their outputs.
+    settle(h);
+    assert!(shows(h, "nut temperature (estimated)"));
+    assert!(shows(h, "elongation (estimated)"));
     click(h, "Trends");
     // The stator temperatures are drawn on first start; add the X load.
     let before = h.state().settings.trends.selected.len();

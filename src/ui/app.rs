@@ -82,6 +82,8 @@ pub struct HmiOptions {
     pub history_budget_bytes: usize,
     /// Limits of the live readings.
     pub thresholds: StatusThresholds,
+    /// Limits of the estimates per axis (from the machine profile).
+    pub estimate_limits: std::collections::BTreeMap<AxisId, crate::profile::AxisLimits>,
     /// The users file shown in the Compensation panel.
     pub users_path: PathBuf,
     /// The audit log shown in the Compensation panel.
@@ -131,6 +133,7 @@ impl HmiApp {
             compensation,
         );
         state.thresholds = options.thresholds;
+        state.estimate_limits = options.estimate_limits;
         let mut settings = options
             .settings_path
             .as_deref()
