@@ -29,7 +29,12 @@ export DISPLAY=$display
 sleep 1
 
 shot() { # shot TAB OUTPUT
-    printf '{"tab": "%s", "window_size": [1400, 900]}\n' "$1" >"$work/hmi.json"
+    cat >"$work/hmi.json" <<JSON
+{"tab": "$1", "window_size": [1400, 900],
+ "trends": {"preset": "ten_minutes", "follow_live": true,
+            "selected": ["X.stator_temp_C", "est.X.motor_flange_temp_C", "est.X.nut_temp_C",
+                         "est.X.front_bearing_temp_C", "S.stator_temp_C", "est.S.elongation_um"]}}
+JSON
     target/release/servosight --speed 120 --data-dir "$work/data" --settings "$work/hmi.json" \
         >"$work/app.log" 2>&1 &
     app=$!

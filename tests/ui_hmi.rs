@@ -23,6 +23,11 @@ struct Fixture {
     harness: Harness<'static, HmiApp>,
 }
 
+fn twin_profile() -> servosight::profile::MachineProfile {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/it25-twin.toml");
+    servosight::profile::MachineProfile::load(std::path::Path::new(path)).expect("twin profile")
+}
+
 fn start() -> Fixture {
     let dir = tempfile::tempdir().expect("temp dir");
     let users_path = dir.path().join("users.toml");
@@ -47,6 +52,7 @@ fn start() -> Fixture {
         users_path: users_path.clone(),
         audit_path: audit_path.clone(),
         limits: CompensationLimits::default(),
+        profile: Some(twin_profile()),
     };
     let session = Session::start(config).expect("session starts");
     let app = HmiApp::new(
@@ -55,6 +61,11 @@ fn start() -> Fixture {
             settings_path: None,
             history_budget_bytes: 16 << 20,
             thresholds: StatusThresholds::default(),
+            estimate_limits: twin_profile()
+                .axes
+                .iter()
+                .map(|(axis, a)| (*axis, a.limits.clone()))
+                .collect(),
             users_path,
             audit_path: audit_path.clone(),
             limits: CompensationLimits::default(),
@@ -287,6 +298,10 @@ fn trends_and_events_controls_work() {
     let mut f = start();
     let h = &mut f.harness;
     step_until(h, "some history", |app| app.state.history.samples() > 5);
+    // The estimators run on the live frames: the Overview shows their outputs.
+    settle(h);
+    assert!(shows(h, "nut temperature (estimated)"));
+    assert!(shows(h, "elongation (estimated)"));
     click(h, "Trends");
     // The stator temperatures are drawn on first start; add the X load.
     let before = h.state().settings.trends.selected.len();
@@ -404,4 +419,32 @@ fn the_hmi_command_reports_a_bad_source_before_opening_a_window() {
     );
     let with_subcommand = servosight(&["--speed", "2", "inspect", "a.csv"]);
     assert!(!with_subcommand.status.success());
+}
+
+#[test]
+fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
+    use servosight::ui::Settings;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("config").join("hmi.json");
+    assert_eq!(Settings::load(&path), Settings::default(), "no file yet");
+    let mut settings = Settings {
+        tab: Tab::Trends,
+        dark: false,
+        window_size: Some([1200.0, 700.0]),
+        ..Settings::default()
+    };
+    settings.trends.selected = vec!["X.load_pct".into()];
+    settings.forms.operator = "otto".into();
+    settings.forms.password = "never saved".into();
+    settings.save(&path).expect("saved");
+    let text = std::fs::read_to_string(&path).expect("written");
+    assert!(!text.contains("never saved"), "passwords are not persisted");
+    let back = Settings::load(&path);
+    assert_eq!(back.tab, Tab::Trends);
+    assert!(!back.dark);
+    assert_eq!(back.window_size, Some([1200.0, 700.0]));
+    assert_eq!(back.trends.selected, vec!["X.load_pct".to_string()]);
+    assert_eq!(back.forms.operator, "otto");
+    std::fs::write(&path, "{ not json").expect("written");
+    assert_eq!(Settings::load(&path), Settings::default());
 }

@@ -41,11 +41,18 @@ fn names() -> Vec<String> {
         COOLANT.to_string(),
         CUT_DEPTH.to_string(),
     ]);
+    // Estimator outputs, as the session appends them when a profile is loaded.
+    names.extend([
+        "est.X.motor_flange_temp_C".to_string(),
+        "est.X.nut_temp_C".to_string(),
+        "est.X.straightness_h_um#2".to_string(),
+        "est.S.elongation_um".to_string(),
+    ]);
     names
 }
 
-/// A row at time `t` with the given stator temperatures.
-fn row(t: f64, x_stator: f64, s_stator: f64) -> Vec<f64> {
+/// A row at time `t` with the given stator and estimated nut temperatures.
+fn row(t: f64, x_stator: f64, s_stator: f64, nut: f64) -> Vec<f64> {
     let mut row = vec![t];
     // X: position, command, speed, torque, current, load, stator.
     row.extend([120.0 + t, 120.5 + t, 600.0, 1.25, 2.5, 18.0, x_stator]);
@@ -60,6 +67,7 @@ fn row(t: f64, x_stator: f64, s_stator: f64) -> Vec<f64> {
         s_stator,
     ]);
     row.extend([21.5, 1.0, 1.5]);
+    row.extend([44.0, nut, 3.25, 18.5]);
     row
 }
 
@@ -175,6 +183,16 @@ fn state(which: &str) -> HmiState {
         audit_entry(1, Outcome::Applied, Some("maria")),
     ];
     let mut s = HmiState::new(names(), connected, 1 << 20, compensation);
+    let profile = servosight::profile::MachineProfile::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/it25-twin.toml"
+    )))
+    .expect("twin profile");
+    s.estimate_limits = profile
+        .axes
+        .iter()
+        .map(|(axis, a)| (*axis, a.limits.clone()))
+        .collect();
     s.recorder = RecorderSnapshot {
         state: RecorderState::Recording,
         path: Some("/data/recordings/recording-2026-03-02T06-00-00-000Z.csv".into()),
@@ -183,15 +201,15 @@ fn state(which: &str) -> HmiState {
         frames_not_written: 0,
         error: None,
     };
-    let (x_stator, s_stator) = match which {
-        "warning" => (104.2, 55.0),
-        "fault" => (48.0, 133.7),
-        _ => (41.3, 55.0),
+    let (x_stator, s_stator, nut) = match which {
+        "warning" => (104.2, 55.0, 47.5),
+        "fault" => (48.0, 133.7, 30.0),
+        _ => (41.3, 55.0, 30.0),
     };
     for i in 0..=20 {
         let t = 700.0 + f64::from(i) * 0.5;
         let ramp = f64::from(i) * 0.05;
-        s.push_row(&row(t, x_stator - 1.0 + ramp, s_stator - 1.0 + ramp));
+        s.push_row(&row(t, x_stator - 1.0 + ramp, s_stator - 1.0 + ramp, nut));
     }
     s.events.push(event(
         EventKind::Link,

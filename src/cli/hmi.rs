@@ -7,6 +7,7 @@ use std::time::Duration;
 use anyhow::Context;
 use servosight::compensation::CompensationLimits;
 use servosight::link::{ModbusConfig, Parity, ReplayOptions, ReplaySpeed};
+use servosight::profile::MachineProfile;
 use servosight::sim::{ScenarioKind, TwinConfig};
 use servosight::ui::state::{StatusThresholds, Threshold};
 use servosight::ui::{HmiOptions, SessionConfig, SourceSpec};
@@ -70,6 +71,10 @@ pub struct Args {
     /// otherwise.
     #[arg(long, value_name = "FILE")]
     pub limits: Option<PathBuf>,
+    /// The calibrated machine profile (TOML) whose estimators run on the live frames; the
+    /// embedded twin uses the shipped twin profile unless this is given.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
     /// Layout and theme file (default: ~/.config/servosight/hmi.json).
     #[arg(long, value_name = "FILE")]
     pub settings: Option<PathBuf>,
@@ -80,6 +85,9 @@ pub struct Args {
     #[arg(long, default_value_t = StatusThresholds::default().stator_temp_c.fault)]
     pub stator_fault_c: f64,
 }
+
+/// The twin's calibrated profile, built in so the default HMI shows estimates anywhere.
+const TWIN_PROFILE: &str = include_str!("../../assets/it25-twin.toml");
 
 fn parse_scenario(s: &str) -> Result<ScenarioKind, String> {
     s.parse()
@@ -158,6 +166,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     };
+    let profile = match (&args.profile, &source) {
+        (Some(path), _) => Some(MachineProfile::load(path)?),
+        (None, SourceSpec::Twin { .. }) => Some(MachineProfile::from_toml(
+            TWIN_PROFILE,
+            "assets/it25-twin.toml (built in)",
+        )?),
+        (None, _) => None,
+    };
+    let estimate_limits = profile
+        .as_ref()
+        .map(|p| {
+            p.axes
+                .iter()
+                .map(|(axis, a)| (*axis, a.limits.clone()))
+                .collect()
+        })
+        .unwrap_or_default();
     let users_path = args
         .users
         .clone()
@@ -178,6 +203,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         users_path: users_path.clone(),
         audit_path: audit_path.clone(),
         limits,
+        profile,
     };
     let options = HmiOptions {
         settings_path,
@@ -188,6 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 fault: args.stator_fault_c,
             },
         },
+        estimate_limits,
         users_path,
         audit_path,
         limits,

@@ -82,6 +82,8 @@ pub struct HmiOptions {
     pub history_budget_bytes: usize,
     /// Limits of the live readings.
     pub thresholds: StatusThresholds,
+    /// Limits of the estimates per axis (from the machine profile).
+    pub estimate_limits: std::collections::BTreeMap<AxisId, crate::profile::AxisLimits>,
     /// The users file shown in the Compensation panel.
     pub users_path: PathBuf,
     /// The audit log shown in the Compensation panel.
@@ -95,7 +97,7 @@ pub struct HmiOptions {
 /// Most events listed at once.
 const EVENT_ROWS: usize = 2000;
 /// Points per series on the Trends plots.
-const TREND_POINTS: usize = 1500;
+const TREND_POINTS: usize = 1000;
 /// How often settings are saved while running.
 const SAVE_EVERY: Duration = Duration::from_secs(10);
 
@@ -131,6 +133,7 @@ impl HmiApp {
             compensation,
         );
         state.thresholds = options.thresholds;
+        state.estimate_limits = options.estimate_limits;
         let mut settings = options
             .settings_path
             .as_deref()

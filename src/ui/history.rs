@@ -6,41 +6,41 @@
 //!
 //! Level 0 holds raw samples. Level k ≥ 1 holds buckets of `factor` entries of level k − 1
 //! (so `factorᵏ` raw samples each). Every level but the last is a ring of fixed capacity that
-//! forgets its oldest entries; the last level keeps everything (at 1 kHz and the default
-//! factor it grows by about 4 MB per hour for 40 channels). Capacities come from a memory
-//! budget ([`HistoryConfig::for_budget`]), so [`History::memory_bytes`] stays under it.
+//! forgets its oldest entries; the last level keeps everything (with the default sizing one
+//! bucket per 32768 samples: about 60 kB per hour of 1 kHz data for 40 channels). Capacities
+//! come from a memory budget ([`HistoryConfig::for_budget`]), so [`History::memory_bytes`] stays under it.
 
 /// How a [`History`] is sized.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct HistoryConfig {
     /// Raw samples kept at full rate.
     pub raw_capacity: usize,
     /// Entries of one level that make one bucket of the next.
     pub factor: usize,
-    /// Buckets kept on each intermediate level (1 ..= `levels` − 2).
-    pub level_capacity: usize,
-    /// Number of levels including the raw level and the unbounded top level (≥ 2).
-    pub levels: usize,
+    /// Buckets kept on each intermediate level, finest first (levels 1 ..); the level after
+    /// the last of these is the unbounded top level.
+    pub level_capacities: Vec<usize>,
 }
 
 impl HistoryConfig {
     /// Sizes the rings so that raw samples and intermediate buckets of `channels` channels fit
-    /// in `budget_bytes`, with four levels and a factor of 8: raw samples cover
-    /// `raw_capacity` samples, level 1 eight times that, level 2 sixty-four times, and the top
-    /// level (512 samples per bucket) everything.
+    /// in `budget_bytes`, with a factor of 8 between levels: a quarter of the budget each to
+    /// raw samples and to levels 1 (8 samples per bucket) and 2 (64), an eighth to level 3
+    /// (512), a sixteenth to level 4 (4096); the top level (32768 samples per bucket, about
+    /// 15 kB per hour at 1 kHz) keeps everything.
     pub fn for_budget(channels: usize, budget_bytes: usize) -> HistoryConfig {
-        let levels = 4;
         let raw_entry = RAW_ENTRY_FIXED_BYTES + channels * RAW_VALUE_BYTES;
         let bucket_entry = BUCKET_ENTRY_FIXED_BYTES + channels * BUCKET_VALUE_BYTES;
-        // Half the budget to the rings of levels 1 and 2, a quarter to raw samples; the rest is
-        // headroom for the top level and the partial buckets.
-        let level_capacity = (budget_bytes / 4 / bucket_entry).max(16);
-        let raw_capacity = (budget_bytes / 4 / raw_entry).max(16);
+        let share = |divisor: usize, entry: usize| (budget_bytes / divisor / entry).max(16);
         HistoryConfig {
-            raw_capacity,
+            raw_capacity: share(4, raw_entry),
             factor: 8,
-            level_capacity,
-            levels,
+            level_capacities: vec![
+                share(4, bucket_entry),
+                share(4, bucket_entry),
+                share(8, bucket_entry),
+                share(16, bucket_entry),
+            ],
         }
     }
 }
@@ -320,15 +320,17 @@ impl History {
     /// An empty history of `channels` (names as in the link's schema, without `time_s`).
     pub fn new(channels: Vec<String>, config: HistoryConfig) -> History {
         let n = channels.len();
-        let levels_count = config.levels.max(2);
+        let levels_count = config.level_capacities.len() + 2;
         let levels = (0..levels_count)
             .map(|k| {
                 let limit = if k == 0 {
                     config.raw_capacity
-                } else if k + 1 == levels_count {
-                    usize::MAX
                 } else {
-                    config.level_capacity
+                    config
+                        .level_capacities
+                        .get(k - 1)
+                        .copied()
+                        .unwrap_or(usize::MAX)
                 };
                 Level::new(k == 0, n, limit)
             })
@@ -374,8 +376,8 @@ impl History {
     }
 
     /// The configuration.
-    pub fn config(&self) -> HistoryConfig {
-        self.config
+    pub fn config(&self) -> &HistoryConfig {
+        &self.config
     }
 
     /// Bytes allocated for samples and buckets.
@@ -467,7 +469,7 @@ impl History {
 
     /// Points of `channels` (indices) between `t0` and `t1`, at most `max_points` of them.
     ///
-    /// Takes the finest level that still holds `t0` and has at most four times `max_points`
+    /// Takes the finest level that still holds `t0` and has at most eight times `max_points`
     /// entries in the window, then merges neighbouring entries down to `max_points`. On a
     /// coarse level the bucket still being filled is added at the end, so the live edge is
     /// never missing.
@@ -495,7 +497,7 @@ impl History {
             let count = level
                 .end_starting_at_or_before(t1)
                 .saturating_sub(level.first_ending_at_or_after(t0));
-            if holds_start && count <= max_points * 4 {
+            if holds_start && count <= max_points * 8 {
                 chosen = k;
                 break;
             }
@@ -636,8 +638,7 @@ mod tests {
         HistoryConfig {
             raw_capacity: 100,
             factor: 4,
-            level_capacity: 50,
-            levels: 4,
+            level_capacities: vec![50, 50],
         }
     }
 
@@ -707,9 +708,10 @@ mod tests {
         let channels = 10;
         let budget = 4 * 1024 * 1024;
         let config = HistoryConfig::for_budget(channels, budget);
+        let raw = config.raw_capacity;
         let mut h = History::new((0..channels).map(|c| format!("c{c}")).collect(), config);
         let row = vec![1.0; channels];
-        for i in 0..(config.raw_capacity * 3) {
+        for i in 0..(raw * 3) {
             h.push(i as f64 * 0.001, &row);
         }
         assert!(

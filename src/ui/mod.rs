@@ -11,9 +11,10 @@
 //! - [`jobs`]: long work (fitting a model from a big database) on its own thread with progress
 //!   and cancel.
 //!
-//! Estimator outputs (motor flange, bearing and nut temperatures, straightness, elongation)
-//! are not part of the crate yet; when they are, they become extra columns of the history and
-//! extra readings and reasons on the Overview cards.
+//! With a calibrated machine profile the session runs the [`crate::estimators`] pipeline on
+//! every frame; its outputs (`est.*` columns: motor flange, bearing and nut temperatures,
+//! torque split, straightness per node and its ISO 1101 zone, spindle elongation) join the
+//! history, and the Overview judges them against the profile's limits.
 
 pub mod app;
 pub mod history;

@@ -21,10 +21,12 @@ use super::state::{
 use crate::compensation::{
     self, AuditEntry, AuditLog, CompensationLimits, CompensationValues, Credentials, Request, Role,
 };
+use crate::estimators::EstimatorPipeline;
 use crate::link::{
     ConnectionState, ControllerLink, LinkError, ModbusConfig, Recorder, RecorderConfig,
     ReplayOptions, ReplaySpeed,
 };
+use crate::profile::MachineProfile;
 use crate::signal::Schema;
 use crate::sim::TwinConfig;
 
@@ -64,6 +66,9 @@ pub struct SessionConfig {
     pub audit_path: PathBuf,
     /// Compensation write limits.
     pub limits: CompensationLimits,
+    /// The calibrated machine profile: its estimators run on every frame and their outputs
+    /// (`est.*` columns) follow the link's columns. `None` shows the servo signals only.
+    pub profile: Option<MachineProfile>,
 }
 
 /// Why a session could not start.
@@ -171,8 +176,24 @@ impl Session {
             SourceSpec::Replay { path, options } => ControllerLink::replay(path, *options)?,
             SourceSpec::Serial(modbus) => ControllerLink::modbus(modbus.clone())?,
         };
-        let schema = link.schema().clone();
         let source = link.status().source;
+        // The estimators run here, beside the recorder (which keeps the link's own columns);
+        // a profile that does not fit this link is reported, and the servo signals still flow.
+        let (pipeline, pipeline_error) = match &config.profile {
+            None => (None, None),
+            Some(profile) => match EstimatorPipeline::new(profile, link.schema()) {
+                Ok(pipeline) => (Some(pipeline), None),
+                Err(error) => (
+                    None,
+                    Some(format!("estimators off ({}): {error}", profile.name)),
+                ),
+            },
+        };
+        let mut names = link.schema().names().to_vec();
+        if let Some(pipeline) = &pipeline {
+            names.extend(pipeline.outputs().into_iter().map(|o| o.column));
+        }
+        let schema = Schema::new(names, &source).map_err(LinkError::from)?;
         let (command_tx, command_rx) = mpsc::channel(64);
         let (update_tx, update_rx) = mpsc::channel(UPDATE_CHANNEL_CAPACITY);
         let runtime = tokio::runtime::Builder::new_current_thread()
@@ -193,7 +214,12 @@ impl Session {
             dropped_frames: 0,
             last_state: None,
             compensation_read_once: false,
+            pipeline,
+            estimates: Vec::new(),
         };
+        if let Some(error) = pipeline_error {
+            worker.event(EventKind::Condition, Severity::Warning, error);
+        }
         let thread = std::thread::Builder::new()
             .name("servosight-session".into())
             .spawn(move || worker.run(&runtime, command_rx))
@@ -266,6 +292,10 @@ struct Worker {
     dropped_frames: u64,
     last_state: Option<ConnectionState>,
     compensation_read_once: bool,
+    /// The estimators, when a profile was given and fits the link.
+    pipeline: Option<EstimatorPipeline>,
+    /// Scratch row of estimator outputs.
+    estimates: Vec<f64>,
 }
 
 impl Worker {
@@ -347,7 +377,14 @@ impl Worker {
                 self.stop_recording(Some(error));
             }
         }
-        let rows: Vec<Vec<f64>> = frames.into_iter().map(|f| f.row).collect();
+        let mut rows: Vec<Vec<f64>> = frames.into_iter().map(|f| f.row).collect();
+        if let Some(pipeline) = self.pipeline.as_mut() {
+            for row in &mut rows {
+                pipeline.update(row);
+                pipeline.write_outputs(&mut self.estimates);
+                row.extend_from_slice(&self.estimates);
+            }
+        }
         self.forward(rows, received_at);
     }
 

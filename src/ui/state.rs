@@ -440,6 +440,9 @@ pub struct HmiState {
     pub history: super::history::History,
     /// Limits of the live readings.
     pub thresholds: StatusThresholds,
+    /// Limits of the estimated temperatures and elongation per axis, from the machine
+    /// profile (empty without one).
+    pub estimate_limits: std::collections::BTreeMap<AxisId, crate::profile::AxisLimits>,
     /// The compensation panel's state.
     pub compensation: CompensationState,
     /// The event list.
@@ -474,6 +477,7 @@ impl HmiState {
             },
             history: super::history::History::new(channels, config),
             thresholds: StatusThresholds::default(),
+            estimate_limits: Default::default(),
             compensation,
             events: EventLog::default(),
             model_lab: ModelLabState::default(),

@@ -81,8 +81,15 @@ pub fn quantity_label(quantity: Quantity) -> &'static str {
     }
 }
 
-/// A column's name as a person reads it: `X.stator_temp_C` → "X stator temperature".
+/// Prefix of the estimator output columns (`est.X.nut_temp_C`).
+pub const ESTIMATE_PREFIX: &str = "est.";
+
+/// A column's name as a person reads it: `X.stator_temp_C` → "X stator temperature",
+/// `est.X.nut_temp_C` → "X nut temperature (estimated)".
 pub fn channel_label(name: &str) -> String {
+    if let Some(rest) = name.strip_prefix(ESTIMATE_PREFIX) {
+        return format!("{} (estimated)", estimate_label(rest));
+    }
     match Channel::parse(name) {
         Channel::Time => "time".into(),
         Channel::Servo { axis, quantity } => format!("{axis} {}", quantity_label(quantity)),
@@ -103,6 +110,25 @@ pub fn channel_label(name: &str) -> String {
             }
         }
         Channel::Unknown if name == CUT_DEPTH => "depth of cut".into(),
+        Channel::Unknown if name.starts_with(ESTIMATE_PREFIX) => name.to_string(),
         Channel::Unknown => name.to_string(),
+    }
+}
+
+/// `X.nut_temp_C` → "X nut temperature", `X.straightness_h_um#3` → "X straightness h node 3".
+fn estimate_label(rest: &str) -> String {
+    let (axis, quantity) = rest.split_once('.').unwrap_or(("", rest));
+    let (quantity, node) = match quantity.split_once('#') {
+        Some((q, k)) => (q, Some(k)),
+        None => (quantity, None),
+    };
+    let base = quantity
+        .rsplit_once('_')
+        .map_or(quantity, |(q, _)| q)
+        .replace("_temp", " temperature")
+        .replace('_', " ");
+    match node {
+        Some(k) => format!("{axis} {base} node {k}"),
+        None => format!("{axis} {base}"),
     }
 }

@@ -106,6 +106,22 @@ pub fn axis_condition(state: &HmiState, axis: AxisId) -> Light {
             ));
         }
     }
+    for (reading, severity, limit) in estimate_readings(state, axis) {
+        if let Some(limit) = limit.filter(|_| severity != Severity::Normal) {
+            let word = if severity == Severity::Fault {
+                "fault"
+            } else {
+                "warning"
+            };
+            reasons.push((
+                severity,
+                format!(
+                    "{} {} {} at or above the {word} limit {limit:.0} {}",
+                    reading.label, reading.value, reading.unit, reading.unit
+                ),
+            ));
+        }
+    }
     reasons.sort_by_key(|r| std::cmp::Reverse(r.0));
     let severity = reasons.first().map_or(Severity::Normal, |r| r.0);
     let reasons = if reasons.is_empty() {
@@ -114,6 +130,52 @@ pub fn axis_condition(state: &HmiState, axis: AxisId) -> Light {
         reasons.into_iter().map(|r| r.1).collect()
     };
     Light { severity, reasons }
+}
+
+/// The estimates of one axis worth a card line (temperatures, elongation, straightness zones),
+/// each judged against the profile's limits: the reading, its severity and the limit crossed.
+fn estimate_readings(state: &HmiState, axis: AxisId) -> Vec<(Reading, Severity, Option<f64>)> {
+    let prefix = format!("{}{axis}.", super::ESTIMATE_PREFIX);
+    let limits = state.estimate_limits.get(&axis);
+    state
+        .latest
+        .names
+        .iter()
+        .filter_map(|name| {
+            let quantity = name.strip_prefix(&prefix)?;
+            let shown = quantity.ends_with("_temp_C")
+                || quantity == "elongation_um"
+                || quantity.ends_with("_zone_um");
+            if !shown {
+                return None;
+            }
+            let value = state.latest.get(name);
+            let threshold = limits.and_then(|l| match quantity {
+                "motor_flange_temp_C" => Some(l.motor_temp_C),
+                "front_bearing_temp_C" | "back_bearing_temp_C" => Some(l.bearing_temp_C),
+                "nut_temp_C" => Some(l.nut_temp_C),
+                "elongation_um" => l.elongation_um,
+                _ => None,
+            });
+            let magnitude = value.map(f64::abs);
+            let (severity, limit) = match (threshold, magnitude) {
+                (Some(t), Some(v)) if v >= t.fault => (Severity::Fault, Some(t.fault)),
+                (Some(t), Some(v)) if v >= t.warning => (Severity::Warning, Some(t.warning)),
+                _ => (Severity::Normal, None),
+            };
+            let label = super::channel_label(name);
+            Some((
+                Reading {
+                    label: label.trim_start_matches(&format!("{axis} ")).to_string(),
+                    value: number(value, 1),
+                    unit: super::unit(name),
+                    severity,
+                },
+                severity,
+                limit,
+            ))
+        })
+        .collect()
 }
 
 fn stator_severity(state: &HmiState, value: Option<f64>) -> Severity {
@@ -169,6 +231,7 @@ pub fn build(state: &HmiState) -> OverviewView {
                     },
                 }
             })
+            .chain(estimate_readings(state, axis).into_iter().map(|r| r.0))
             .collect();
             AxisCard {
                 axis: axis.to_string(),

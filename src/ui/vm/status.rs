@@ -59,6 +59,11 @@ pub fn build(state: &HmiState) -> StatusView {
     if let Some(error) = &link.last_error {
         detail.push(format!("last error: {error}"));
     }
+    if let Some(latency) = state.ingest_latency_ms {
+        detail.push(format!(
+            "newest frames reached the screen {latency:.0} ms after they arrived"
+        ));
+    }
     let recorder = &state.recorder;
     let (recorder_severity, recorder_text) = match recorder.state {
         RecorderState::Recording => (

@@ -149,7 +149,16 @@ pub struct TrendsView {
     pub plots: Vec<PlotView>,
 }
 
+/// The axis of an estimator output column (`est.X.nut_temp_C` → X).
+fn estimate_axis(name: &str) -> Option<AxisId> {
+    let rest = name.strip_prefix(super::ESTIMATE_PREFIX)?;
+    rest.split_once('.')?.0.parse().ok()
+}
+
 fn group_title(name: &str) -> String {
+    if let Some(axis) = estimate_axis(name) {
+        return format!("{axis} estimates");
+    }
     match Channel::parse(name) {
         Channel::Servo { axis, .. } => format!("{axis} axis"),
         Channel::Reference { axis, .. } => format!("{axis} reference instruments"),
@@ -158,10 +167,13 @@ fn group_title(name: &str) -> String {
 }
 
 fn group_order(name: &str) -> (u8, Option<AxisId>) {
+    if let Some(axis) = estimate_axis(name) {
+        return (1, Some(axis));
+    }
     match Channel::parse(name) {
         Channel::Servo { axis, .. } => (0, Some(axis)),
-        Channel::Reference { axis, .. } => (2, Some(axis)),
-        _ => (1, None),
+        Channel::Reference { axis, .. } => (3, Some(axis)),
+        _ => (2, None),
     }
 }
 
