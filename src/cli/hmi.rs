@@ -1,12 +1,11 @@
 //! The HMI's command line: `servosight` with no subcommand opens the window on the embedded
 //! twin; `--replay FILE` or `--port DEV` choose the other sources.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use servosight::compensation::CompensationLimits;
-use servosight::link::{ModbusConfig, Parity, ReplayOptions, ReplaySpeed};
+use servosight::link::{ReplayOptions, ReplaySpeed};
 use servosight::profile::MachineProfile;
 use servosight::sim::{ScenarioKind, TwinConfig};
 use servosight::ui::state::{StatusThresholds, Threshold};
@@ -33,24 +32,9 @@ pub struct Args {
     /// The twin's seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Baud rate (with --port).
-    #[arg(long, default_value_t = 115_200)]
-    pub baud: u32,
-    /// Parity (with --port): none, even or odd.
-    #[arg(long, default_value = "none")]
-    pub parity: Parity,
-    /// Stop bits (with --port).
-    #[arg(long, default_value_t = 1)]
-    pub stop_bits: u8,
-    /// Modbus slave id (with --port).
-    #[arg(long, default_value_t = 1)]
-    pub slave: u8,
-    /// Polls per second (with --port).
-    #[arg(long, default_value_t = 50.0)]
-    pub poll_hz: f64,
-    /// Reply timeout, ms (with --port).
-    #[arg(long, default_value_t = 200)]
-    pub timeout_ms: u64,
+    /// Serial line settings (with --port).
+    #[command(flatten)]
+    pub line: super::serial_args::SerialLineArgs,
     /// Where recordings, the users file and the audit log live (default: the user's data
     /// directory, e.g. ~/.local/share/servosight).
     #[arg(long, value_name = "DIR")]
@@ -104,23 +88,6 @@ fn home_dir(var: &str, fallback: &str) -> Option<PathBuf> {
         })
 }
 
-fn load_limits(path: Option<&Path>) -> anyhow::Result<CompensationLimits> {
-    #[derive(serde::Deserialize)]
-    struct Profile {
-        compensation_limits: CompensationLimits,
-    }
-    match path {
-        None => Ok(CompensationLimits::default()),
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read {}", path.display()))?;
-            let profile: Profile = toml::from_str(&text)
-                .with_context(|| format!("{}: no valid [compensation_limits]", path.display()))?;
-            Ok(profile.compensation_limits)
-        }
-    }
-}
-
 /// Opens the HMI.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.speed.is_finite() && args.speed > 0.0) {
@@ -147,16 +114,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ..ReplayOptions::default()
             },
         },
-        (None, Some(port)) => {
-            let mut config = ModbusConfig::new(port);
-            config.baud = args.baud;
-            config.parity = args.parity;
-            config.stop_bits = args.stop_bits;
-            config.slave = args.slave;
-            config.poll_hz = args.poll_hz;
-            config.request_timeout = Duration::from_millis(args.timeout_ms);
-            SourceSpec::Serial(config)
-        }
+        (None, Some(port)) => SourceSpec::Serial(args.line.config(port)),
         (None, None) => {
             let mut config = TwinConfig::new(args.scenario, None, args.seed);
             config.rate_hz = args.rate;
@@ -191,7 +149,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .audit
         .clone()
         .unwrap_or_else(|| data_dir.join("audit.jsonl"));
-    let limits = load_limits(args.limits.as_deref())?;
+    let limits = super::compensate::load_limits(args.limits.as_deref())?;
     let record_dir = (!args.no_record).then(|| {
         args.record_dir
             .clone()
