@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use servosight::estimators::calibration::calibrate;
+use servosight::estimators::calibration::{CorrectionForm, calibrate};
 use servosight::profile::MachineProfile;
 use servosight::signal::read_recording;
 
@@ -60,20 +60,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             m.estimate, m.n, m.r2, m.cv_r2, m.f_statistic, m.equation
         );
         if let Some(c) = &m.experiment_correction {
+            let verdict = match c.form {
+                CorrectionForm::None => "none applied".to_string(),
+                CorrectionForm::Offset => format!("applied: {:+.4}", c.offset),
+                CorrectionForm::GainOffset => {
+                    format!("applied: {:+.4} + {:.4}·predicted", c.offset, c.gain)
+                }
+            };
             println!(
-                "{:<34} experiments: n = {}, measured = {:+.4} + {:.4}·predicted, p = {:.2e}, RMSE {:.4} → {:.4} ({})",
+                "{:<34} experiments: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
                 "",
                 c.n,
-                c.offset,
-                c.gain,
-                c.p_value,
+                c.cv_rmse_none,
+                c.cv_rmse_offset,
+                c.cv_rmse_gain_offset,
+                c.improvement_p_value,
+                verdict,
                 c.rmse_before,
                 c.rmse_after,
-                if c.applied {
-                    "applied"
-                } else {
-                    "not significant, not applied"
-                }
             );
         }
     }

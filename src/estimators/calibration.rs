@@ -15,6 +15,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::fit::autocorrelation::mean_above_zero;
 use crate::fit::{Design, FitError, OlsFit, blocked_cross_validation, ols};
 use crate::profile::{AxisKind, MachineProfile};
 use crate::signal::channel::AMBIENT;
@@ -26,18 +27,22 @@ use super::streaming::{HeatAccumulator, TorqueSplitEstimator};
 
 /// Candidate heat-accumulation time constants, s.
 const HEAT_TAUS_S: &[f64] = &[300.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
-/// Candidate (fast, slow) time constants of the elongation model, s.
-const ELONGATION_TAUS_S: &[(f64, f64)] = &[
-    (600.0, 3600.0),
-    (900.0, 3600.0),
-    (900.0, 7200.0),
-    (1200.0, 5400.0),
-    (1800.0, 7200.0),
+/// Candidate (fast, middle, slow) time constants of the elongation model, s. Each is tried
+/// with the fast and slow terms only and with all three.
+const ELONGATION_TAUS_S: &[(f64, f64, f64)] = &[
+    (200.0, 1000.0, 5000.0),
+    (300.0, 1800.0, 7200.0),
+    (600.0, 2400.0, 9600.0),
+    (900.0, 3600.0, 7200.0),
+    (1200.0, 3600.0, 5400.0),
+    (1800.0, 3600.0, 7200.0),
 ];
 /// Blocks of the time-blocked cross-validation.
 const CV_FOLDS: usize = 5;
 /// Rows dropped on each side of a held-out block (at 1 Hz: 10 minutes).
 const CV_GAP_ROWS: usize = 600;
+/// Significance a correction's held-out improvement needs before it is applied.
+const CORRECTION_ALPHA: f64 = 0.01;
 /// Experiments correct a model only with at least this many reference samples.
 const MIN_EXPERIMENT_ROWS: usize = 30;
 
@@ -100,22 +105,115 @@ pub struct ModelReport {
 }
 
 /// How experiments corrected a model: measured = offset + gain · database prediction.
+///
+/// The form is chosen by how well each predicts experiment data it was not fitted on (each
+/// experiment's halves held out in turn): a correction fitted to a short cold-start run often
+/// only describes that run's transient, and an F-test on thousands of autocorrelated samples
+/// calls every such correction significant.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ExperimentCorrection {
     /// Experiment samples used.
     pub n: usize,
-    /// Offset a.
+    /// The form applied.
+    pub form: CorrectionForm,
+    /// Offset a (0 unless applied).
     pub offset: f64,
-    /// Gain b.
+    /// Gain b (1 unless a gain correction is applied).
     pub gain: f64,
-    /// p-value of the F-test of (a, b) ≠ (0, 1).
-    pub p_value: f64,
+    /// Held-out RMSE on the experiments without a correction.
+    pub cv_rmse_none: f64,
+    /// Held-out RMSE with an offset correction.
+    pub cv_rmse_offset: f64,
+    /// Held-out RMSE with a gain and offset correction.
+    pub cv_rmse_gain_offset: f64,
+    /// One-sided p-value that the best form's held-out improvement is real (Diebold–Mariano
+    /// on squared errors with the effective sample size); NaN when no form beat none.
+    pub improvement_p_value: f64,
     /// RMSE on the experiments before the correction.
     pub rmse_before: f64,
-    /// RMSE on the experiments after it.
+    /// RMSE on the experiments after it (fitted on all of them).
     pub rmse_after: f64,
-    /// Whether it was applied (significant at p < 0.01).
+    /// Whether a correction was applied.
     pub applied: bool,
+}
+
+/// The corrections experiments can make to a database model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CorrectionForm {
+    /// The database model stands.
+    None,
+    /// measured = a + predicted.
+    Offset,
+    /// measured = a + b·predicted.
+    GainOffset,
+}
+
+impl CorrectionForm {
+    /// Fits the form on `(predicted, measured)` pairs: (offset, gain).
+    fn fit(self, predicted: &[f64], measured: &[f64]) -> Option<(f64, f64)> {
+        let n = predicted.len() as f64;
+        match self {
+            CorrectionForm::None => Some((0.0, 1.0)),
+            CorrectionForm::Offset => {
+                let mean = predicted
+                    .iter()
+                    .zip(measured)
+                    .map(|(p, m)| m - p)
+                    .sum::<f64>()
+                    / n;
+                mean.is_finite().then_some((mean, 1.0))
+            }
+            CorrectionForm::GainOffset => {
+                let mp = predicted.iter().sum::<f64>() / n;
+                let mm = measured.iter().sum::<f64>() / n;
+                let (mut sxy, mut sxx) = (0.0, 0.0);
+                for (p, m) in predicted.iter().zip(measured) {
+                    sxy += (p - mp) * (m - mm);
+                    sxx += (p - mp) * (p - mp);
+                }
+                let gain = sxy / sxx;
+                // A negative gain would turn the model upside down: not a correction.
+                (gain.is_finite() && gain > 0.0).then_some((mm - gain * mp, gain))
+            }
+        }
+    }
+}
+
+/// Sum of squared errors of `offset + gain·predicted` against `measured`.
+fn corrected_sse(predicted: &[f64], measured: &[f64], (offset, gain): (f64, f64)) -> f64 {
+    predicted
+        .iter()
+        .zip(measured)
+        .map(|(p, m)| (m - offset - gain * p).powi(2))
+        .sum()
+}
+
+/// Held-out errors of a correction form: every block is predicted by the form fitted on the
+/// others. `None` when a fit is impossible (fewer than two blocks, a degenerate gain).
+fn held_out_errors(blocks: &[(&[f64], &[f64])], form: CorrectionForm) -> Option<Vec<f64>> {
+    if blocks.len() < 2 {
+        return None;
+    }
+    let mut errors = Vec::new();
+    for held_out in 0..blocks.len() {
+        let (mut predicted, mut measured) = (Vec::new(), Vec::new());
+        for (i, (p, m)) in blocks.iter().enumerate() {
+            if i != held_out {
+                predicted.extend_from_slice(p);
+                measured.extend_from_slice(m);
+            }
+        }
+        let (offset, gain) = form.fit(&predicted, &measured)?;
+        let (p, m) = blocks[held_out];
+        errors.extend(p.iter().zip(m).map(|(p, m)| m - offset - gain * p));
+    }
+    Some(errors)
+}
+
+/// Root mean square.
+fn rms(values: &[f64]) -> f64 {
+    (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
 }
 
 /// The calibration report.
@@ -752,8 +850,10 @@ fn fit_heat_model(
     ))
 }
 
-/// Eq. 15 for a spindle, with the two heat-accumulation terms' time constants (and the room
-/// term) chosen by blocked cross-validation.
+/// Eq. 15 for a spindle: ΔT_stator, speed and load plus heat accumulated from the speed
+/// (bearing friction) and, as a candidate, from the load (copper losses), over two or three
+/// time constants, with or without the room; the time constants and terms chosen like every
+/// other model (experiments, else blocked cross-validation).
 fn fit_elongation(
     axis: AxisId,
     database: &[Recording],
@@ -765,8 +865,8 @@ fn fit_elongation(
         return Ok(None);
     }
     let estimate = format!("{axis}.spindle_elongation");
-    let mut best: Option<((f64, f64), Fitted)> = None;
-    for &(fast, slow) in ELONGATION_TAUS_S {
+    let mut best: Option<((f64, f64, f64), Fitted)> = None;
+    for &(fast, mid, slow) in ELONGATION_TAUS_S {
         let fitted = fit_best(
             &estimate,
             "δ_R",
@@ -778,6 +878,7 @@ fn fit_elongation(
                 let speed = r.column_for(&axis_column(axis, Quantity::Speed), &estimate)?;
                 let load = r.column_for(&axis_column(axis, Quantity::Load), &estimate)?;
                 let krpm: Vec<f64> = speed.iter().map(|s| s.abs() / 1000.0).collect();
+                let load: Vec<f64> = load.iter().map(|l| l.abs()).collect();
                 let first = stator.first().copied().unwrap_or(0.0);
                 let base = vec![
                     (
@@ -785,29 +886,58 @@ fn fit_elongation(
                         stator.iter().map(|t| t - first).collect(),
                     ),
                     ("speed".to_string(), krpm.clone()),
-                    ("load".to_string(), load.iter().map(|l| l.abs()).collect()),
-                    ("heat_fast".to_string(), accumulate(r.time(), &krpm, fast)),
-                    ("heat_slow".to_string(), accumulate(r.time(), &krpm, slow)),
+                    ("load".to_string(), load.clone()),
                 ];
-                with_room_variant(base, r, has_ambient)
+                let heat = |name: &str, input: &[f64], taus: &[(&str, f64)]| {
+                    taus.iter()
+                        .map(|(suffix, tau)| {
+                            (
+                                format!("{name}_{suffix}"),
+                                accumulate(r.time(), input, *tau),
+                            )
+                        })
+                        .collect::<Columns>()
+                };
+                let mut candidates = Vec::new();
+                for taus in [
+                    &[("fast", fast), ("slow", slow)][..],
+                    &[("fast", fast), ("mid", mid), ("slow", slow)][..],
+                ] {
+                    let mut speed_only = base.clone();
+                    speed_only.extend(heat("heat", &krpm, taus));
+                    let mut with_load = speed_only.clone();
+                    with_load.extend(heat("load_heat", &load, taus));
+                    candidates.extend(with_room_variant(speed_only, r, has_ambient)?);
+                    candidates.extend(with_room_variant(with_load, r, has_ambient)?);
+                }
+                Ok(candidates)
             },
         )?;
         if best
             .as_ref()
             .is_none_or(|(_, b)| fitted.report.selection_r2 > b.report.selection_r2 + 1e-4)
         {
-            best = Some(((fast, slow), fitted));
+            best = Some(((fast, mid, slow), fitted));
         }
     }
-    Ok(best.map(|((fast, slow), fitted)| {
+    Ok(best.map(|((fast, mid, slow), fitted)| {
         let mut report = fitted.report;
-        report.equation = format!(
-            "{}; heat terms: speed accumulated with τ = {fast} s and {slow} s",
-            report.equation
-        );
+        let uses_mid = fitted.model.terms.iter().any(|t| t.ends_with("_mid"));
+        report.equation = if uses_mid {
+            format!(
+                "{}; heat terms accumulated with τ = {fast} s, {mid} s and {slow} s",
+                report.equation
+            )
+        } else {
+            format!(
+                "{}; heat terms accumulated with τ = {fast} s and {slow} s",
+                report.equation
+            )
+        };
         (
             ElongationModel {
                 fast_tau_s: fast,
+                mid_tau_s: mid,
                 slow_tau_s: slow,
                 model: fitted.model,
             },
@@ -870,8 +1000,9 @@ fn estimated_temperatures(
 }
 
 /// Lets the experiments correct the models of one stage: for every estimate the pipeline
-/// produces whose reference the experiments have, fit measured = a + b·predicted and fold it
-/// into the model when significant.
+/// produces whose reference the experiments have, choose among no correction, an offset and a
+/// gain with an offset by time-blocked cross-validation over the experiments (each one's first
+/// and second half held out in turn), and fold the winner into the model.
 fn apply_experiments(
     profile: &MachineProfile,
     calibration: &mut Calibration,
@@ -884,52 +1015,90 @@ fn apply_experiments(
     }
     let mut current = profile.clone();
     current.calibration = Some(calibration.clone());
-    // Collect (predicted, measured) per estimate over every experiment.
-    let mut pairs: BTreeMap<String, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+    // (predicted, measured) per estimate, one entry per experiment.
+    let mut pairs: BTreeMap<String, Vec<(Vec<f64>, Vec<f64>)>> = BTreeMap::new();
     for recording in experiments {
         let series = super::accuracy::run(&current, recording)?;
         for (output, values) in series.outputs.iter().zip(&series.values) {
             let Some(measured) = recording.try_column(&output.reference) else {
                 continue;
             };
-            let entry = pairs.entry(output.column.clone()).or_default();
-            entry.0.extend_from_slice(values);
-            entry.1.extend_from_slice(measured);
+            pairs
+                .entry(output.column.clone())
+                .or_default()
+                .push((values.clone(), measured.to_vec()));
         }
     }
-    for (column, (predicted, measured)) in pairs {
+    for (column, per_experiment) in pairs {
         let Some((axis, slot)) = model_slot(&column, stage) else {
             continue;
         };
-        if predicted.len() < MIN_EXPERIMENT_ROWS {
+        let n: usize = per_experiment.iter().map(|(p, _)| p.len()).sum();
+        if n < MIN_EXPERIMENT_ROWS {
             continue;
         }
-        let n = predicted.len() as f64;
-        let sse_before: f64 = predicted
+        let blocks: Vec<(&[f64], &[f64])> = per_experiment
             .iter()
-            .zip(&measured)
-            .map(|(p, m)| (m - p).powi(2))
-            .sum();
-        let design = Design::from_columns(
-            "measured",
-            measured.clone(),
-            vec![("predicted".into(), predicted.clone())],
-        );
-        let Ok(design) = design else { continue };
-        let Ok(fit) = ols(&design) else { continue };
-        let (offset, gain) = (fit.coefficients[0].estimate, fit.coefficients[1].estimate);
-        let sse_after = fit.ss_error;
-        // F-test of the two correction parameters against "no correction" (a = 0, b = 1).
-        let f = ((sse_before - sse_after) / 2.0) / (sse_after / (n - 2.0)).max(f64::MIN_POSITIVE);
-        let p_value = crate::fit::distributions::f_survival(f.max(0.0), 2.0, n - 2.0);
-        let applied = p_value < 0.01 && gain.is_finite() && gain > 0.0;
+            .flat_map(|(p, m)| {
+                let half = p.len() / 2;
+                [(&p[..half], &m[..half]), (&p[half..], &m[half..])]
+            })
+            .filter(|(p, _)| !p.is_empty())
+            .collect();
+        let errors = [
+            CorrectionForm::None,
+            CorrectionForm::Offset,
+            CorrectionForm::GainOffset,
+        ]
+        .map(|form| held_out_errors(&blocks, form));
+        let cv = |i: usize| errors[i].as_deref().map_or(f64::INFINITY, rms);
+        let (cv_none, cv_offset, cv_gain_offset) = (cv(0), cv(1), cv(2));
+        // The simplest form wins ties: a correction must earn its place out of sample.
+        let mut chosen = 0;
+        for candidate in [1, 2] {
+            if cv(candidate) < cv(chosen) {
+                chosen = candidate;
+            }
+        }
+        // ...and the improvement must be more than the residuals' slow wander: a one-sided
+        // Diebold–Mariano test on the held-out squared errors, counting only the effective
+        // (autocorrelation-corrected) number of samples.
+        let improvement_p_value = match (&errors[0], &errors[chosen]) {
+            (Some(none), Some(corrected)) if chosen != 0 => {
+                let gain_in_loss: Vec<f64> = none
+                    .iter()
+                    .zip(corrected)
+                    .map(|(a, b)| a * a - b * b)
+                    .collect();
+                mean_above_zero(&gain_in_loss).p_value
+            }
+            _ => f64::NAN,
+        };
+        let form = if chosen != 0 && improvement_p_value < CORRECTION_ALPHA {
+            [
+                CorrectionForm::None,
+                CorrectionForm::Offset,
+                CorrectionForm::GainOffset,
+            ][chosen]
+        } else {
+            CorrectionForm::None
+        };
+        let predicted: Vec<f64> = per_experiment.iter().flat_map(|(p, _)| p.clone()).collect();
+        let measured: Vec<f64> = per_experiment.iter().flat_map(|(_, m)| m.clone()).collect();
+        let (offset, gain) = form.fit(&predicted, &measured).unwrap_or((0.0, 1.0));
+        let rows = n as f64;
+        let applied = form != CorrectionForm::None;
         let correction = ExperimentCorrection {
-            n: predicted.len(),
+            n,
+            form,
             offset,
             gain,
-            p_value,
-            rmse_before: (sse_before / n).sqrt(),
-            rmse_after: (sse_after / n).sqrt(),
+            cv_rmse_none: cv_none,
+            cv_rmse_offset: cv_offset,
+            cv_rmse_gain_offset: cv_gain_offset,
+            improvement_p_value,
+            rmse_before: (corrected_sse(&predicted, &measured, (0.0, 1.0)) / rows).sqrt(),
+            rmse_after: (corrected_sse(&predicted, &measured, (offset, gain)) / rows).sqrt(),
             applied,
         };
         if applied {

@@ -27,15 +27,21 @@ pub const STRAIGHTNESS_FEATURES: &[&str] = &[
     "motor^3", "ambient",
 ];
 /// Spindle elongation (Eq. 15): ΔT of the stator since tool calibration, speed, load, plus
-/// heat accumulated over a short and a long time constant (Eq. 10's form applied to the
-/// spindle's losses) and the room.
+/// heat accumulated over a fast, a middle and a slow time constant (Eq. 10's form applied to
+/// the spindle's losses) — of the speed (bearing friction) and of the load (motor copper
+/// losses, which reach the housing through the stator) — and the room. A fitted model uses a
+/// subset.
 pub const ELONGATION_FEATURES: &[&str] = &[
     "const",
     "delta_stator",
     "speed",
     "load",
     "heat_fast",
+    "heat_mid",
     "heat_slow",
+    "load_heat_fast",
+    "load_heat_mid",
+    "load_heat_slow",
     "ambient",
 ];
 /// Ideal motor torque from motion (abnormality): constant, acceleration, speed, direction.
@@ -76,13 +82,15 @@ pub struct HeatModel {
     pub temperature: LinearModel,
 }
 
-/// The spindle elongation model: time constants of the two heat terms and the linear model.
+/// The spindle elongation model: time constants of the heat terms and the linear model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ElongationModel {
-    /// Time constant of `heat_fast`, s.
+    /// Time constant of `heat_fast` and `load_heat_fast`, s.
     pub fast_tau_s: f64,
-    /// Time constant of `heat_slow`, s.
+    /// Time constant of `heat_mid` and `load_heat_mid`, s.
+    pub mid_tau_s: f64,
+    /// Time constant of `heat_slow` and `load_heat_slow`, s.
     pub slow_tau_s: f64,
     /// The model over `ELONGATION_FEATURES`.
     pub model: LinearModel,
@@ -190,7 +198,7 @@ impl Calibration {
                 )?;
             }
             if let Some(e) = &m.elongation {
-                if !(e.fast_tau_s > 0.0 && e.slow_tau_s > 0.0) {
+                if !(e.fast_tau_s > 0.0 && e.mid_tau_s > 0.0 && e.slow_tau_s > 0.0) {
                     return Err((p("elongation"), "time constants must be positive".into()));
                 }
                 check(p("elongation"), &e.model, ELONGATION_FEATURES)?;

@@ -300,8 +300,10 @@ pub fn minimum_zone_straightness(x: &[f64], d: &[f64]) -> f64 {
 #[derive(Debug, Clone)]
 pub struct SpindleElongationEstimator {
     model: BoundModel,
-    fast: HeatAccumulator,
-    slow: HeatAccumulator,
+    /// Speed heat over the fast, middle and slow time constants.
+    heat: [HeatAccumulator; 3],
+    /// Load heat over the same time constants.
+    load_heat: [HeatAccumulator; 3],
     stator_at_calibration: Option<f64>,
     elongation_at_calibration: f64,
 }
@@ -311,8 +313,9 @@ impl SpindleElongationEstimator {
     pub fn new(model: &ElongationModel) -> Result<Self, String> {
         Ok(SpindleElongationEstimator {
             model: BoundModel::bind(&model.model, ELONGATION_FEATURES)?,
-            fast: HeatAccumulator::new(model.fast_tau_s),
-            slow: HeatAccumulator::new(model.slow_tau_s),
+            heat: [model.fast_tau_s, model.mid_tau_s, model.slow_tau_s].map(HeatAccumulator::new),
+            load_heat: [model.fast_tau_s, model.mid_tau_s, model.slow_tau_s]
+                .map(HeatAccumulator::new),
             stator_at_calibration: None,
             elongation_at_calibration: 0.0,
         })
@@ -335,17 +338,32 @@ impl SpindleElongationEstimator {
         dt: f64,
     ) -> f64 {
         let speed_krpm = speed_rpm.abs() / 1000.0;
-        let fast = self.fast.update(speed_krpm, dt);
-        let slow = self.slow.update(speed_krpm, dt);
+        let load = load_pct.abs();
+        let [fast, mid, slow] = &mut self.heat;
+        let [load_fast, load_mid, load_slow] = &mut self.load_heat;
+        let (fast, mid, slow) = (
+            fast.update(speed_krpm, dt),
+            mid.update(speed_krpm, dt),
+            slow.update(speed_krpm, dt),
+        );
+        let (load_fast, load_mid, load_slow) = (
+            load_fast.update(load, dt),
+            load_mid.update(load, dt),
+            load_slow.update(load, dt),
+        );
         let first = self.stator_at_calibration.is_none();
         let reference = *self.stator_at_calibration.get_or_insert(stator_C);
         let value = self.model.eval(&[
             1.0,
             stator_C - reference,
             speed_krpm,
-            load_pct.abs(),
+            load,
             fast,
+            mid,
             slow,
+            load_fast,
+            load_mid,
+            load_slow,
             ambient_C,
         ]);
         if first {

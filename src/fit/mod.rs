@@ -27,6 +27,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod autocorrelation;
 pub mod design;
 pub mod distributions;
 pub mod error;
