@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Reproduces docs/accuracy.md: calibrate on twin data (a DOE database + one short experiment),
+# Reproduces docs/accuracy.md: calibrate on twin data (a DOE database + one experiment: a single
+# 8 h production shift recorded with reference sensors),
 # validate on a different seed and scenario with noise, and measure backlash on test runs from
 # 5 to 60 µm at two noise levels. Takes about a minute after the release build.
 set -euo pipefail
@@ -10,7 +11,7 @@ cargo build --release --quiet
 S=target/release/servosight
 
 $S simulate --scenario doe --hours 48 --seed 1 -o "$out/db.csv"
-$S simulate --scenario production --hours 4 --seed 2 -o "$out/experiment.csv"
+$S simulate --scenario production --hours 8 --seed 2 -o "$out/experiment.csv"
 $S simulate --scenario production --hours 10 --seed 7 -o "$out/validation.csv"
 $S calibrate --database "$out/db.csv" --experiments "$out/experiment.csv" \
     -o "$out/profile.toml" --json "$out/calibration.json" > "$out/calibration.txt"

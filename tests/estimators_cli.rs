@@ -111,12 +111,12 @@ fn calibrate_then_estimate_end_to_end() {
     let db = simulate(
         dir.path(),
         "db.csv",
-        &["--scenario", "doe", "--hours", "12", "--seed", "1"],
+        &["--scenario", "doe", "--hours", "24", "--seed", "1"],
     );
     let exp = simulate(
         dir.path(),
         "exp.csv",
-        &["--scenario", "production", "--hours", "3", "--seed", "2"],
+        &["--scenario", "production", "--hours", "8", "--seed", "2"],
     );
     let val = simulate(
         dir.path(),
@@ -190,14 +190,10 @@ fn calibrate_then_estimate_end_to_end() {
             .and_then(|a| a["r2"].as_f64())
             .unwrap_or_else(|| panic!("no accuracy row for {id}"))
     };
-    assert!(
-        r2("motor_flange_temp") > 0.9,
-        "motor flange R² {}",
-        r2("motor_flange_temp")
-    );
     // A short database: these floors only show that the estimates track their references;
     // the Table 3 figures on a full database are in docs/accuracy.md.
     for id in [
+        "motor_flange_temp",
         "front_bearing_temp",
         "back_bearing_temp",
         "nut_temp",

@@ -63,16 +63,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let verdict = match c.form {
                 CorrectionForm::None => "none applied".to_string(),
                 CorrectionForm::Offset => format!("applied: {:+.4}", c.offset),
+                CorrectionForm::Gain => format!("applied: {:.4}·predicted", c.gain),
                 CorrectionForm::GainOffset => {
                     format!("applied: {:+.4} + {:.4}·predicted", c.offset, c.gain)
                 }
             };
             println!(
-                "{:<34} experiments: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
+                "{:<34} experiments: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
                 "",
                 c.n,
                 c.cv_rmse_none,
                 c.cv_rmse_offset,
+                c.cv_rmse_gain,
                 c.cv_rmse_gain_offset,
                 c.improvement_p_value,
                 verdict,

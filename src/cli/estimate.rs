@@ -58,15 +58,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     } else {
         println!(
-            "{:<24} {:>8} {:>8} {:>10} {:>10}  reference",
-            "estimate", "n", "R²", "RMSE", "max |err|"
+            "{:<24} {:>8} {:>8} {:>10} {:>10} {:>9} {:>10}  reference",
+            "estimate", "n", "R²", "RMSE", "max |err|", "ref σ", "R² true"
         );
         for r in &rows {
+            let corrected = r
+                .r2_noise_corrected
+                .map_or_else(|| "—".to_string(), |v| format!("{v:.4}"));
             println!(
-                "{:<24} {:>8} {:>8.4} {:>10.4} {:>10.4}  {}",
-                r.estimate, r.n, r.r2, r.rmse, r.max_abs_error, r.reference
+                "{:<24} {:>8} {:>8.4} {:>10.4} {:>10.4} {:>9.4} {:>10}  {}",
+                r.estimate,
+                r.n,
+                r.r2,
+                r.rmse,
+                r.max_abs_error,
+                r.reference_noise,
+                corrected,
+                r.reference
             );
         }
+        println!(
+            "R² true: against the noise-free reference, with the reference's white noise (ref σ) estimated from its sample-to-sample differences"
+        );
     }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(

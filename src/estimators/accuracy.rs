@@ -53,6 +53,15 @@ pub struct AccuracyRow {
     pub rmse: f64,
     /// Largest absolute error.
     pub max_abs_error: f64,
+    /// The reference instrument's white noise, estimated from the reference's own sample-to-
+    /// sample differences (robustly: median absolute difference / (0.6745·√2)). Meaningful for
+    /// references that change slowly between samples (temperatures, thermal displacements).
+    pub reference_noise: f64,
+    /// R² against the noise-free reference, `1 − (MSE − σ²)/(Var − σ²)` with σ =
+    /// `reference_noise`: how much of the *true* variation the estimate explains, which a noisy
+    /// reference caps below 1. `None` when the noise is not small against the variation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub r2_noise_corrected: Option<f64>,
 }
 
 /// Scores every estimate whose reference column exists in `recording`.
@@ -81,6 +90,11 @@ pub fn score(id: &str, reference_name: &str, estimate: &[f64], reference: &[f64]
     let mean = pairs.iter().map(|(_, r)| r).sum::<f64>() / n.max(1) as f64;
     let sse: f64 = pairs.iter().map(|(e, r)| (r - e).powi(2)).sum();
     let sst: f64 = pairs.iter().map(|(_, r)| (r - mean).powi(2)).sum();
+    let reference_noise = white_noise_from_differences(pairs.iter().map(|(_, r)| *r));
+    let (mse, variance) = (sse / n.max(1) as f64, sst / n.max(1) as f64);
+    let noise_variance = reference_noise * reference_noise;
+    let r2_noise_corrected = (noise_variance < 0.5 * variance)
+        .then(|| 1.0 - (mse - noise_variance).max(0.0) / (variance - noise_variance));
     AccuracyRow {
         estimate: id.to_string(),
         reference: reference_name.to_string(),
@@ -88,7 +102,22 @@ pub fn score(id: &str, reference_name: &str, estimate: &[f64], reference: &[f64]
         r2: if sst > 0.0 { 1.0 - sse / sst } else { f64::NAN },
         rmse: (sse / n.max(1) as f64).sqrt(),
         max_abs_error: pairs.iter().map(|(e, r)| (r - e).abs()).fold(0.0, f64::max),
+        reference_noise,
+        r2_noise_corrected,
     }
+}
+
+/// White-noise σ of a slowly varying series from its first differences: a difference of two
+/// samples carries √2·σ of noise, and the median ignores the few real steps.
+fn white_noise_from_differences(series: impl Iterator<Item = f64>) -> f64 {
+    let values: Vec<f64> = series.collect();
+    let mut differences: Vec<f64> = values.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    if differences.is_empty() {
+        return 0.0;
+    }
+    let middle = differences.len() / 2;
+    let (_, median, _) = differences.select_nth_unstable_by(middle, f64::total_cmp);
+    *median / (0.674_489_75 * std::f64::consts::SQRT_2)
 }
 
 #[cfg(test)]
@@ -103,5 +132,35 @@ mod tests {
         assert!((row.r2 - 0.75).abs() < 1e-12);
         assert!((row.rmse - (2.0_f64 / 3.0).sqrt()).abs() < 1e-12);
         assert_eq!(row.max_abs_error, 1.0);
+    }
+
+    #[test]
+    fn noise_of_a_slow_reference_is_recovered_and_removed_from_r2() {
+        // A slow sine measured with σ = 0.2 white noise (a seeded Box–Muller stream) and an
+        // estimate that is the noiseless sine itself: R² against the noisy reference is capped
+        // below 1, against the noise-free one it is 1.
+        let mut state = 42u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let n = 20_000;
+        let truth: Vec<f64> = (0..n).map(|i| (i as f64 / 3000.0).sin() * 0.6).collect();
+        let reference: Vec<f64> = truth
+            .iter()
+            .map(|t| {
+                let (u1, u2) = (uniform(), uniform());
+                t + 0.2 * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+            })
+            .collect();
+        let row = score("x", "ref.x", &truth, &reference);
+        assert!((row.reference_noise - 0.2).abs() < 0.01, "{row:?}");
+        assert!(row.r2 < 0.85, "{row:?}");
+        let corrected = row
+            .r2_noise_corrected
+            .expect("noise is small against the variation");
+        assert!((corrected - 1.0).abs() < 0.02, "{row:?}");
     }
 }

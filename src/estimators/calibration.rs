@@ -23,7 +23,7 @@ use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 
 use super::models::{AxisModels, Calibration, ElongationModel, HeatModel, LinearModel};
 use super::pipeline::EstimatorPipeline;
-use super::streaming::{HeatAccumulator, TorqueSplitEstimator};
+use super::streaming::{HeatAccumulator, StraightnessInputs, TorqueSplitEstimator};
 
 /// Candidate heat-accumulation time constants, s.
 const HEAT_TAUS_S: &[f64] = &[300.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
@@ -42,7 +42,7 @@ const CV_FOLDS: usize = 5;
 /// Rows dropped on each side of a held-out block (at 1 Hz: 10 minutes).
 const CV_GAP_ROWS: usize = 600;
 /// Significance a correction's held-out improvement needs before it is applied.
-const CORRECTION_ALPHA: f64 = 0.01;
+const CORRECTION_ALPHA: f64 = 0.05;
 /// Experiments correct a model only with at least this many reference samples.
 const MIN_EXPERIMENT_ROWS: usize = 30;
 
@@ -122,8 +122,10 @@ pub struct ExperimentCorrection {
     pub gain: f64,
     /// Held-out RMSE on the experiments without a correction.
     pub cv_rmse_none: f64,
-    /// Held-out RMSE with an offset correction.
+    /// Held-out RMSE with an offset correction (NaN where an offset cannot apply).
     pub cv_rmse_offset: f64,
+    /// Held-out RMSE with a gain-only correction (NaN where it is not considered).
+    pub cv_rmse_gain: f64,
     /// Held-out RMSE with a gain and offset correction.
     pub cv_rmse_gain_offset: f64,
     /// One-sided p-value that the best form's held-out improvement is real (Diebold–Mariano
@@ -145,6 +147,8 @@ pub enum CorrectionForm {
     None,
     /// measured = a + predicted.
     Offset,
+    /// measured = b·predicted (for estimators zeroed at a calibration moment).
+    Gain,
     /// measured = a + b·predicted.
     GainOffset,
 }
@@ -163,6 +167,12 @@ impl CorrectionForm {
                     .sum::<f64>()
                     / n;
                 mean.is_finite().then_some((mean, 1.0))
+            }
+            CorrectionForm::Gain => {
+                let pp: f64 = predicted.iter().map(|p| p * p).sum();
+                let pm: f64 = predicted.iter().zip(measured).map(|(p, m)| p * m).sum();
+                let gain = pm / pp;
+                (gain.is_finite() && gain > 0.0).then_some((0.0, gain))
             }
             CorrectionForm::GainOffset => {
                 let mp = predicted.iter().sum::<f64>() / n;
@@ -262,6 +272,7 @@ pub fn calibrate(
                             )];
                             with_room_variant(base, r, has_ambient)
                         },
+                        Scoring::Absolute,
                     )?;
                     models.motor_flange = Some(fitted.model.clone());
                     report.models.push(fitted.report);
@@ -376,28 +387,13 @@ pub fn calibrate(
                     experiments,
                     &target,
                     &|side, index, r| {
-                        let temps = match side {
+                        let inputs = match side {
                             Side::Database => &estimated[index],
                             Side::Experiment => &estimated_experiments[index],
                         };
-                        let mut columns = Vec::new();
-                        for (name, values) in [
-                            ("front", &temps.front),
-                            ("back", &temps.back),
-                            ("motor", &temps.motor),
-                        ] {
-                            columns.push((name.to_string(), values.clone()));
-                            columns.push((
-                                format!("{name}^2"),
-                                values.iter().map(|t| t * t).collect(),
-                            ));
-                            columns.push((
-                                format!("{name}^3"),
-                                values.iter().map(|t| t * t * t).collect(),
-                            ));
-                        }
-                        with_room_variant(columns, r, has_ambient)
+                        straightness_candidates(inputs, r, has_ambient)
                     },
+                    Scoring::Absolute,
                 )?;
                 out.push(fitted.model);
                 report.models.push(fitted.report);
@@ -444,6 +440,16 @@ enum Side {
     Experiment,
 }
 
+/// How a candidate's predictions on an experiment are compared with its reference.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Scoring {
+    /// As they are.
+    Absolute,
+    /// Counted from the recording's first sample, as an estimator that is zeroed at a
+    /// calibration moment (spindle elongation from the tool measurement) reports them.
+    FromFirstSample,
+}
+
 /// Named regressor columns.
 type Columns = Vec<(String, Vec<f64>)>;
 
@@ -461,6 +467,7 @@ fn fit_best(
     experiments: &[Recording],
     target: &str,
     candidates: &Candidates<'_>,
+    scoring: Scoring,
 ) -> Result<Fitted, CalibrationError> {
     let mut per_recording = Vec::with_capacity(database.len());
     let mut y = Vec::new();
@@ -470,9 +477,11 @@ fn fit_best(
     }
     let mut per_experiment = Vec::new();
     let mut y_experiment = Vec::new();
+    let mut experiment_starts = Vec::new();
     for (index, recording) in experiments.iter().enumerate() {
         if let Some(values) = recording.try_column(target) {
             per_experiment.push(candidates(Side::Experiment, index, recording)?);
+            experiment_starts.push(y_experiment.len());
             y_experiment.extend_from_slice(values);
         }
     }
@@ -492,7 +501,19 @@ fn fit_best(
         };
         let score = if y_experiment.len() >= MIN_EXPERIMENT_ROWS {
             let columns = stack(&per_experiment, c);
-            let predicted = predict(&fitted.model.coefficients, &columns, y_experiment.len());
+            let mut predicted = predict(&fitted.model.coefficients, &columns, y_experiment.len());
+            if scoring == Scoring::FromFirstSample {
+                let mut ends = experiment_starts[1..].to_vec();
+                ends.push(predicted.len());
+                for (&start, &end) in experiment_starts.iter().zip(&ends) {
+                    let Some(&first) = predicted.get(start) else {
+                        continue;
+                    };
+                    for p in &mut predicted[start..end] {
+                        *p -= first;
+                    }
+                }
+            }
             fitted.report.selected_by = "experiments";
             r_squared(&y_experiment, &predicted)
         } else {
@@ -824,6 +845,7 @@ fn fit_heat_model(
                 candidates.extend(with_room_variant(both, r, fit.has_ambient)?);
                 Ok(candidates)
             },
+            Scoring::Absolute,
         )?;
         let score = fitted.report.selection_r2;
         if best.as_ref().is_none_or(|(b, _, _)| score > *b + 1e-4) {
@@ -912,6 +934,7 @@ fn fit_elongation(
                 }
                 Ok(candidates)
             },
+            Scoring::FromFirstSample,
         )?;
         if best
             .as_ref()
@@ -946,20 +969,14 @@ fn fit_elongation(
     }))
 }
 
-/// Estimated front-bearing, back-bearing and motor-flange temperatures over a recording, from
-/// the models fitted so far.
-struct EstimatedTemperatures {
-    front: Vec<f64>,
-    back: Vec<f64>,
-    motor: Vec<f64>,
-}
-
+/// What the straightness models read (estimated temperatures and thermal states) over a
+/// recording, from the models fitted so far.
 fn estimated_temperatures(
     profile: &MachineProfile,
     calibration: &Calibration,
     recording: &Recording,
     axis: AxisId,
-) -> Result<EstimatedTemperatures, CalibrationError> {
+) -> Result<Vec<StraightnessInputs>, CalibrationError> {
     let mut partial = profile.clone();
     let mut stage = calibration.clone();
     // Straightness models are being fitted; the pipeline must not need them yet.
@@ -970,21 +987,27 @@ fn estimated_temperatures(
     partial.calibration = Some(stage);
     let mut pipeline = EstimatorPipeline::new(&partial, recording.schema())?;
     let mut row = Vec::with_capacity(recording.schema().len());
-    let mut out = EstimatedTemperatures {
-        front: Vec::with_capacity(recording.len()),
-        back: Vec::with_capacity(recording.len()),
-        motor: Vec::with_capacity(recording.len()),
-    };
+    let mut out = Vec::with_capacity(recording.len());
     for i in 0..recording.len() {
         recording.row_into(i, &mut row);
         pipeline.update(&row);
-        let e = pipeline
-            .feed_axis(axis)
-            .ok_or_else(|| CalibrationError::NoData {
-                estimate: format!("{axis}.straightness"),
-                message: "no temperature models for this axis".into(),
-            })?;
-        if e.front_bearing_C.is_nan() || e.back_bearing_C.is_nan() || e.motor_flange_C.is_nan() {
+        let inputs =
+            pipeline
+                .straightness_inputs(axis)
+                .ok_or_else(|| CalibrationError::NoData {
+                    estimate: format!("{axis}.straightness"),
+                    message: "no temperature models for this axis".into(),
+                })?;
+        if [
+            inputs.front_C,
+            inputs.back_C,
+            inputs.motor_C,
+            inputs.front_heat,
+            inputs.back_heat,
+        ]
+        .iter()
+        .any(|v| v.is_nan())
+        {
             return Err(CalibrationError::NoData {
                 estimate: format!("{axis}.straightness"),
                 message:
@@ -992,11 +1015,49 @@ fn estimated_temperatures(
                         .into(),
             });
         }
-        out.front.push(e.front_bearing_C);
-        out.back.push(e.back_bearing_C);
-        out.motor.push(e.motor_flange_C);
+        out.push(*inputs);
     }
     Ok(out)
+}
+
+/// Reads one value of [`StraightnessInputs`].
+type Reading = fn(&StraightnessInputs) -> f64;
+
+/// The straightness candidates of one recording: the paper's cubics in the estimated
+/// temperatures, the same linear, and linear in the thermal states — each with and without the
+/// room.
+fn straightness_candidates(
+    inputs: &[StraightnessInputs],
+    recording: &Recording,
+    has_ambient: bool,
+) -> Result<Vec<Columns>, CalibrationError> {
+    let column = |name: &str, f: &dyn Fn(&StraightnessInputs) -> f64| {
+        (name.to_string(), inputs.iter().map(f).collect::<Vec<f64>>())
+    };
+    let temperatures: [(&str, Reading); 3] = [
+        ("front", |i| i.front_C),
+        ("back", |i| i.back_C),
+        ("motor", |i| i.motor_C),
+    ];
+    let mut cubic = Vec::new();
+    let mut linear = Vec::new();
+    for (name, f) in temperatures {
+        linear.push(column(name, &f));
+        cubic.push(column(name, &f));
+        cubic.push(column(&format!("{name}^2"), &|i| f(i).powi(2)));
+        cubic.push(column(&format!("{name}^3"), &|i| f(i).powi(3)));
+    }
+    let states = vec![
+        column("stator", &|i| i.stator_C),
+        column("front_heat", &|i| i.front_heat),
+        column("front_load_heat", &|i| i.front_load_heat),
+        column("back_heat", &|i| i.back_heat),
+        column("back_load_heat", &|i| i.back_load_heat),
+    ];
+    let mut candidates = with_room_variant(cubic, recording, has_ambient)?;
+    candidates.extend(with_room_variant(linear, recording, has_ambient)?);
+    candidates.extend(with_room_variant(states, recording, has_ambient)?);
+    Ok(candidates)
 }
 
 /// Lets the experiments correct the models of one stage: for every estimate the pipeline
@@ -1016,7 +1077,7 @@ fn apply_experiments(
     let mut current = profile.clone();
     current.calibration = Some(calibration.clone());
     // (predicted, measured) per estimate, one entry per experiment.
-    let mut pairs: BTreeMap<String, Vec<(Vec<f64>, Vec<f64>)>> = BTreeMap::new();
+    let mut pairs: BTreeMap<String, Vec<PredictedMeasured>> = BTreeMap::new();
     for recording in experiments {
         let series = super::accuracy::run(&current, recording)?;
         for (output, values) in series.outputs.iter().zip(&series.values) {
@@ -1037,70 +1098,8 @@ fn apply_experiments(
         if n < MIN_EXPERIMENT_ROWS {
             continue;
         }
-        let blocks: Vec<(&[f64], &[f64])> = per_experiment
-            .iter()
-            .flat_map(|(p, m)| {
-                let half = p.len() / 2;
-                [(&p[..half], &m[..half]), (&p[half..], &m[half..])]
-            })
-            .filter(|(p, _)| !p.is_empty())
-            .collect();
-        let errors = [
-            CorrectionForm::None,
-            CorrectionForm::Offset,
-            CorrectionForm::GainOffset,
-        ]
-        .map(|form| held_out_errors(&blocks, form));
-        let cv = |i: usize| errors[i].as_deref().map_or(f64::INFINITY, rms);
-        let (cv_none, cv_offset, cv_gain_offset) = (cv(0), cv(1), cv(2));
-        // The simplest form wins ties: a correction must earn its place out of sample.
-        let mut chosen = 0;
-        for candidate in [1, 2] {
-            if cv(candidate) < cv(chosen) {
-                chosen = candidate;
-            }
-        }
-        // ...and the improvement must be more than the residuals' slow wander: a one-sided
-        // Diebold–Mariano test on the held-out squared errors, counting only the effective
-        // (autocorrelation-corrected) number of samples.
-        let improvement_p_value = match (&errors[0], &errors[chosen]) {
-            (Some(none), Some(corrected)) if chosen != 0 => {
-                let gain_in_loss: Vec<f64> = none
-                    .iter()
-                    .zip(corrected)
-                    .map(|(a, b)| a * a - b * b)
-                    .collect();
-                mean_above_zero(&gain_in_loss).p_value
-            }
-            _ => f64::NAN,
-        };
-        let form = if chosen != 0 && improvement_p_value < CORRECTION_ALPHA {
-            [
-                CorrectionForm::None,
-                CorrectionForm::Offset,
-                CorrectionForm::GainOffset,
-            ][chosen]
-        } else {
-            CorrectionForm::None
-        };
-        let predicted: Vec<f64> = per_experiment.iter().flat_map(|(p, _)| p.clone()).collect();
-        let measured: Vec<f64> = per_experiment.iter().flat_map(|(_, m)| m.clone()).collect();
-        let (offset, gain) = form.fit(&predicted, &measured).unwrap_or((0.0, 1.0));
-        let rows = n as f64;
-        let applied = form != CorrectionForm::None;
-        let correction = ExperimentCorrection {
-            n,
-            form,
-            offset,
-            gain,
-            cv_rmse_none: cv_none,
-            cv_rmse_offset: cv_offset,
-            cv_rmse_gain_offset: cv_gain_offset,
-            improvement_p_value,
-            rmse_before: (corrected_sse(&predicted, &measured, (0.0, 1.0)) / rows).sqrt(),
-            rmse_after: (corrected_sse(&predicted, &measured, (offset, gain)) / rows).sqrt(),
-            applied,
-        };
+        let correction = choose_correction(&per_experiment, slot.zeroed_at_calibration());
+        let (applied, offset, gain) = (correction.applied, correction.offset, correction.gain);
         if applied {
             let models = calibration.axes.entry(axis).or_default();
             if let Some(model) = slot.model_mut(models) {
@@ -1125,6 +1124,96 @@ fn apply_experiments(
     Ok(())
 }
 
+/// An estimate's series over one experiment and the reference it is scored against.
+type PredictedMeasured = (Vec<f64>, Vec<f64>);
+
+/// Chooses and fits the experiments' correction of one estimate from its (predicted,
+/// measured) series, one pair per experiment: the form with the smallest held-out RMSE (each
+/// experiment's halves held out in turn), kept only when its improvement over no correction
+/// passes a one-sided Diebold–Mariano test at `CORRECTION_ALPHA` with the effective sample size.
+fn choose_correction(
+    per_experiment: &[PredictedMeasured],
+    zeroed_at_calibration: bool,
+) -> ExperimentCorrection {
+    let n: usize = per_experiment.iter().map(|(p, _)| p.len()).sum();
+    let blocks: Vec<(&[f64], &[f64])> = per_experiment
+        .iter()
+        .flat_map(|(p, m)| {
+            let half = p.len() / 2;
+            [(&p[..half], &m[..half]), (&p[half..], &m[half..])]
+        })
+        .filter(|(p, _)| !p.is_empty())
+        .collect();
+    // An estimator zeroed at a calibration moment (elongation from the tool measurement)
+    // cancels any offset: only its gain can be corrected.
+    let forms: &[CorrectionForm] = if zeroed_at_calibration {
+        &[CorrectionForm::None, CorrectionForm::Gain]
+    } else {
+        &[
+            CorrectionForm::None,
+            CorrectionForm::Offset,
+            CorrectionForm::GainOffset,
+        ]
+    };
+    let errors: Vec<Option<Vec<f64>>> = forms
+        .iter()
+        .map(|&form| held_out_errors(&blocks, form))
+        .collect();
+    let cv = |i: usize| errors[i].as_deref().map_or(f64::INFINITY, rms);
+    let cv_of = |form: CorrectionForm| forms.iter().position(|&f| f == form).map_or(f64::NAN, cv);
+    // The simplest form wins ties: a correction must earn its place out of sample.
+    let mut chosen = 0;
+    for candidate in 1..forms.len() {
+        if cv(candidate) < cv(chosen) {
+            chosen = candidate;
+        }
+    }
+    // ...and the improvement must be more than the residuals' slow wander: a one-sided
+    // Diebold–Mariano test on the held-out squared errors, counting only the effective
+    // (autocorrelation-corrected) number of samples.
+    let improvement_p_value = match (&errors[0], &errors[chosen]) {
+        (Some(none), Some(corrected)) if chosen != 0 => {
+            let gain_in_loss: Vec<f64> = none
+                .iter()
+                .zip(corrected)
+                .map(|(a, b)| a * a - b * b)
+                .collect();
+            mean_above_zero(&gain_in_loss).p_value
+        }
+        _ => f64::NAN,
+    };
+    let form = if chosen != 0 && improvement_p_value < CORRECTION_ALPHA {
+        forms[chosen]
+    } else {
+        CorrectionForm::None
+    };
+    let (cv_none, cv_offset, cv_gain, cv_gain_offset) = (
+        cv(0),
+        cv_of(CorrectionForm::Offset),
+        cv_of(CorrectionForm::Gain),
+        cv_of(CorrectionForm::GainOffset),
+    );
+    let predicted: Vec<f64> = per_experiment.iter().flat_map(|(p, _)| p.clone()).collect();
+    let measured: Vec<f64> = per_experiment.iter().flat_map(|(_, m)| m.clone()).collect();
+    let (offset, gain) = form.fit(&predicted, &measured).unwrap_or((0.0, 1.0));
+    let rows = n as f64;
+    let applied = form != CorrectionForm::None;
+    ExperimentCorrection {
+        n,
+        form,
+        offset,
+        gain,
+        cv_rmse_none: cv_none,
+        cv_rmse_offset: cv_offset,
+        cv_rmse_gain: cv_gain,
+        cv_rmse_gain_offset: cv_gain_offset,
+        improvement_p_value,
+        rmse_before: (corrected_sse(&predicted, &measured, (0.0, 1.0)) / rows).sqrt(),
+        rmse_after: (corrected_sse(&predicted, &measured, (offset, gain)) / rows).sqrt(),
+        applied,
+    }
+}
+
 /// Which stored model an estimate column belongs to.
 #[derive(Debug, Clone, Copy)]
 enum ModelSlot {
@@ -1138,6 +1227,11 @@ enum ModelSlot {
 }
 
 impl ModelSlot {
+    /// Whether the estimator reports values counted from a calibration moment.
+    fn zeroed_at_calibration(self) -> bool {
+        matches!(self, ModelSlot::Elongation)
+    }
+
     fn model_mut(self, m: &mut AxisModels) -> Option<&mut LinearModel> {
         match self {
             ModelSlot::Flange => m.motor_flange.as_mut(),
@@ -1187,4 +1281,81 @@ fn model_slot(column: &str, stage: Stage) -> Option<(AxisId, ModelSlot)> {
         _ => return None,
     };
     Some((axis, slot))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A seeded stream of roughly normal numbers (sum of uniforms), unit variance.
+    fn noise(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            let mut sum = 0.0;
+            for _ in 0..12 {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                sum += (state >> 11) as f64 / (1u64 << 53) as f64;
+            }
+            sum - 6.0
+        }
+    }
+
+    /// A 4 h experiment at 1 Hz: a slow "true" signal the database model predicts, and the
+    /// measured reference = truth + `offset` + `wander` (slow AR(1) error of the model) + white
+    /// instrument noise.
+    fn experiment(offset: f64, wander: f64, seed: u64) -> Vec<(Vec<f64>, Vec<f64>)> {
+        let mut draw = noise(seed);
+        let n = 4 * 3600;
+        let phi = (-1.0f64 / 2400.0).exp();
+        let mut slow = 0.0;
+        let (mut predicted, mut measured) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for i in 0..n {
+            let truth = 25.0 + 3.0 * (1.0 - (-(i as f64) / 3000.0).exp());
+            slow = phi * slow + (1.0 - phi * phi).sqrt() * draw();
+            predicted.push(truth);
+            measured.push(truth + offset + wander * slow + 0.05 * draw());
+        }
+        vec![(predicted, measured)]
+    }
+
+    #[test]
+    fn a_real_offset_is_found_and_applied() {
+        let c = choose_correction(&experiment(0.3, 0.02, 1), false);
+        assert_eq!(c.form, CorrectionForm::Offset, "{c:?}");
+        assert!((c.offset - 0.3).abs() < 0.02, "{c:?}");
+        assert!(c.applied && c.improvement_p_value < CORRECTION_ALPHA);
+        assert!(c.rmse_after < c.rmse_before);
+    }
+
+    #[test]
+    fn slow_model_error_without_an_offset_is_not_corrected() {
+        // The model's error wanders by ±0.3 over tens of minutes: any 4 h window has a mean
+        // that an F-test over 14 400 samples calls significant; counted honestly it is not.
+        let mut applied = 0;
+        for seed in 0..20 {
+            let c = choose_correction(&experiment(0.0, 0.3, seed), false);
+            applied += usize::from(c.applied);
+        }
+        assert!(applied <= 1, "{applied} of 20 spurious corrections applied");
+    }
+
+    #[test]
+    fn a_zeroed_estimator_only_gets_a_gain() {
+        let mut pairs = experiment(0.0, 0.0, 3);
+        for (predicted, measured) in &mut pairs {
+            let (p0, m0) = (predicted[0], measured[0]);
+            for (p, m) in predicted.iter_mut().zip(measured.iter_mut()) {
+                *p -= p0;
+                *m = 1.2 * (*m - m0);
+            }
+        }
+        let c = choose_correction(&pairs, true);
+        assert_eq!(c.form, CorrectionForm::Gain, "{c:?}");
+        // The zeroed reference carries its first sample's noise, which biases a gain a little.
+        assert!((c.gain - 1.2).abs() < 0.05, "{c:?}");
+        assert_eq!(c.offset, 0.0);
+        assert!(c.cv_rmse_offset.is_nan());
+    }
 }

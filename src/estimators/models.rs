@@ -21,10 +21,27 @@ pub const RATIO_FEATURES: &[&str] = &["const", "torque", "torque^2", "torque^3"]
 /// accumulated load heat (∝ speed × the component's estimated torque).
 pub const HEAT_FEATURES: &[&str] = &["const", "stator", "ambient", "heat", "load_heat"];
 /// Straightness per node (Eqs. 13–14): cubics in front-bearing, back-bearing and motor
-/// temperatures, and the room.
+/// temperatures, and the room — or, as the alternative calibration may choose, linear in the
+/// thermal states those temperatures are built from (stator temperature and the bearings'
+/// accumulated drag and load heat), which keeps the temperature models' errors out of the
+/// bending estimate. A fitted model uses a subset.
 pub const STRAIGHTNESS_FEATURES: &[&str] = &[
-    "const", "front", "front^2", "front^3", "back", "back^2", "back^3", "motor", "motor^2",
-    "motor^3", "ambient",
+    "const",
+    "front",
+    "front^2",
+    "front^3",
+    "back",
+    "back^2",
+    "back^3",
+    "motor",
+    "motor^2",
+    "motor^3",
+    "ambient",
+    "stator",
+    "front_heat",
+    "front_load_heat",
+    "back_heat",
+    "back_load_heat",
 ];
 /// Spindle elongation (Eq. 15): ΔT of the stator since tool calibration, speed, load, plus
 /// heat accumulated over a fast, a middle and a slow time constant (Eq. 10's form applied to

@@ -9,7 +9,8 @@ use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 use super::models::AxisModels;
 use super::streaming::{
     ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, SpindleElongationEstimator,
-    StraightnessEstimator, TorqueSplit, TorqueSplitEstimator, minimum_zone_straightness,
+    StraightnessEstimator, StraightnessInputs, TorqueSplit, TorqueSplitEstimator,
+    minimum_zone_straightness,
 };
 
 /// Why a pipeline could not be built.
@@ -151,6 +152,8 @@ struct FeedAxisPipeline {
     nut: Option<ComponentThermalEstimator>,
     straightness_h: Option<StraightnessEstimator>,
     straightness_v: Option<StraightnessEstimator>,
+    /// What the straightness models read this frame (kept for calibration).
+    thermal_state: StraightnessInputs,
     estimate: FeedAxisEstimate,
 }
 
@@ -250,6 +253,7 @@ impl EstimatorPipeline {
                             &models.straightness_v,
                             "vertical straightness",
                         )?,
+                        thermal_state: StraightnessInputs::default(),
                         estimate: {
                             let mut estimate = FeedAxisEstimate::default();
                             for (slot, x) in estimate.node_positions_mm.iter_mut().zip(&positions) {
@@ -312,26 +316,34 @@ impl EstimatorPipeline {
                     e.nut_C = nut.update(e.split.nut_Nm, speed, stator, ambient, dt);
                 }
             }
-            let motor = e.motor_flange_C;
-            if let Some(h) = &axis.straightness_h {
-                e.nodes = h.nodes();
-                h.update(
-                    e.front_bearing_C,
-                    e.back_bearing_C,
-                    motor,
-                    ambient,
-                    &mut e.straightness_h_um,
-                );
-            }
-            if let Some(v) = &axis.straightness_v {
-                e.nodes = v.nodes();
-                v.update(
-                    e.front_bearing_C,
-                    e.back_bearing_C,
-                    motor,
-                    ambient,
-                    &mut e.straightness_v_um,
-                );
+            {
+                let states = |c: &Option<ComponentThermalEstimator>| {
+                    c.as_ref()
+                        .map_or((f64::NAN, f64::NAN), |c| (c.heat(), c.load_heat()))
+                };
+                let (front_heat, front_load_heat) = states(&axis.front);
+                let (back_heat, back_load_heat) = states(&axis.back);
+                let inputs = StraightnessInputs {
+                    front_C: e.front_bearing_C,
+                    back_C: e.back_bearing_C,
+                    motor_C: e.motor_flange_C,
+                    ambient_C: ambient,
+                    stator_C: stator,
+                    front_heat,
+                    front_load_heat,
+                    back_heat,
+                    back_load_heat,
+                };
+                axis.thermal_state = inputs;
+                for (estimator, out) in [
+                    (&axis.straightness_h, &mut e.straightness_h_um),
+                    (&axis.straightness_v, &mut e.straightness_v_um),
+                ] {
+                    if let Some(estimator) = estimator {
+                        e.nodes = estimator.nodes();
+                        estimator.update(&inputs, out);
+                    }
+                }
             }
         }
         for spindle in &mut self.spindles {
@@ -350,6 +362,15 @@ impl EstimatorPipeline {
             .iter()
             .find(|a| a.axis == axis)
             .map(|a| &a.estimate)
+    }
+
+    /// The estimated temperatures and thermal states the straightness models of a feed axis
+    /// read on the latest frame.
+    pub fn straightness_inputs(&self, axis: AxisId) -> Option<&StraightnessInputs> {
+        self.feed
+            .iter()
+            .find(|a| a.axis == axis)
+            .map(|a| &a.thermal_state)
     }
 
     /// The latest estimates of a spindle.

@@ -173,9 +173,14 @@ impl ComponentThermalEstimator {
         self.model.eval(&[1.0, stator_C, ambient_C, h, l])
     }
 
-    /// The accumulated heat, W.
+    /// The accumulated drag heat.
     pub fn heat(&self) -> f64 {
         self.heat.value()
+    }
+
+    /// The accumulated load heat.
+    pub fn load_heat(&self) -> f64 {
+        self.load_heat.value()
     }
 }
 
@@ -188,6 +193,30 @@ pub fn heat_inputs(torque_Nm: f64, travel_rpm: f64) -> (f64, f64) {
         krpm,
         (torque_Nm * travel_rpm * RPM_TO_RAD_PER_S).abs() / 1000.0,
     )
+}
+
+/// What the straightness models read: the estimated temperatures and the thermal states
+/// behind them (see [`STRAIGHTNESS_FEATURES`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StraightnessInputs {
+    /// Estimated front-bearing temperature, °C.
+    pub front_C: f64,
+    /// Estimated back-bearing temperature, °C.
+    pub back_C: f64,
+    /// Estimated motor (flange) temperature, °C.
+    pub motor_C: f64,
+    /// Room temperature, °C.
+    pub ambient_C: f64,
+    /// Stator temperature, °C.
+    pub stator_C: f64,
+    /// Front bearing's accumulated drag heat.
+    pub front_heat: f64,
+    /// Front bearing's accumulated load heat.
+    pub front_load_heat: f64,
+    /// Back bearing's accumulated drag heat.
+    pub back_heat: f64,
+    /// Back bearing's accumulated load heat.
+    pub back_load_heat: f64,
 }
 
 /// Largest number of straightness nodes an axis may have.
@@ -226,27 +255,30 @@ impl StraightnessEstimator {
     /// Fills `out` with each node's deviation, µm. The ISO 1101 value is a pure function of
     /// these and is computed when read ([`minimum_zone_straightness`]), not on every frame.
     #[inline]
-    pub fn update(
-        &self,
-        front_C: f64,
-        back_C: f64,
-        motor_C: f64,
-        ambient_C: f64,
-        out: &mut [f64; MAX_NODES],
-    ) {
-        let (f2, b2, m2) = (front_C * front_C, back_C * back_C, motor_C * motor_C);
+    pub fn update(&self, inputs: &StraightnessInputs, out: &mut [f64; MAX_NODES]) {
+        let i = inputs;
+        let (f2, b2, m2) = (
+            i.front_C * i.front_C,
+            i.back_C * i.back_C,
+            i.motor_C * i.motor_C,
+        );
         let features = [
             1.0,
-            front_C,
+            i.front_C,
             f2,
-            f2 * front_C,
-            back_C,
+            f2 * i.front_C,
+            i.back_C,
             b2,
-            b2 * back_C,
-            motor_C,
+            b2 * i.back_C,
+            i.motor_C,
             m2,
-            m2 * motor_C,
-            ambient_C,
+            m2 * i.motor_C,
+            i.ambient_C,
+            i.stator_C,
+            i.front_heat,
+            i.front_load_heat,
+            i.back_heat,
+            i.back_load_heat,
         ];
         for (slot, model) in out.iter_mut().zip(&self.models) {
             *slot = model.eval(&features);
