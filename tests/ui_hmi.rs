@@ -53,6 +53,7 @@ fn start() -> Fixture {
         audit_path: audit_path.clone(),
         limits: CompensationLimits::default(),
         profile: Some(twin_profile()),
+        data_dir: dir.path().join("data"),
     };
     let session = Session::start(config).expect("session starts");
     let app = HmiApp::new(

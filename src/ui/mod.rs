@@ -16,7 +16,9 @@
 //! torque split, straightness per node and its ISO 1101 zone, spindle elongation) join the
 //! history, and the Overview judges them against the profile's limits.
 
+pub mod analysis;
 pub mod app;
+pub mod export_png;
 pub mod history;
 pub mod jobs;
 pub mod panels;
