@@ -85,11 +85,13 @@ pub fn render_trends(view: &TrendsView, dark: bool, size: [u32; 2]) -> Result<Ca
                 super::panels::trends::plots_ui(ui, view, true, None);
             });
         });
+        let mut full = full;
         for (id, deltas) in &full.textures_delta.set {
             for delta in deltas {
                 apply_delta(&mut textures, *id, delta);
             }
         }
+        full.textures_delta.clear();
         output = Some(full);
     }
     let Some(full) = output else {

@@ -702,11 +702,18 @@ pub fn build(state: &HmiState) -> WarmupView {
         no_abnormality(state),
         elongation(state, settings),
     ];
-    let verdict = steps
+    // A failed step decides the verdict; otherwise an open step leaves it pending.
+    let worst = steps
         .iter()
         .map(|s| s.status)
         .max()
         .unwrap_or(StepStatus::Pending);
+    let verdict =
+        if worst != StepStatus::Fail && steps.iter().any(|s| s.status == StepStatus::Pending) {
+            StepStatus::Pending
+        } else {
+            worst
+        };
     let pending: Vec<&str> = steps
         .iter()
         .filter(|s| s.status == StepStatus::Pending)
