@@ -714,7 +714,10 @@ fn trends_show_the_straightness_profile_and_export_a_png() {
         .filter(|p| near(p, [0x1f, 0x77, 0xb4]))
         .count();
     assert!(blue > 100, "{blue} blue pixels");
-    let red = image.pixels().filter(|p| near(p, [0xd6, 0x27, 0x28])).count();
+    let red = image
+        .pixels()
+        .filter(|p| near(p, [0xd6, 0x27, 0x28]))
+        .count();
     assert!(red > 500, "{red} red pixels");
     let light = image
         .pixels()
