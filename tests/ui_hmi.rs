@@ -452,11 +452,14 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     let path = dir.path().join("config").join("hmi.json");
     assert_eq!(Settings::load(&path), Settings::default(), "no file yet");
     let mut settings = Settings {
-        tab: Tab::Trends,
+        tab: Tab::Warmup,
         dark: false,
         window_size: Some([1200.0, 700.0]),
+        window_pos: Some([40.0, 60.0]),
         ..Settings::default()
     };
+    settings.forms.checklist_operator = "otto".into();
+    settings.forms.workpiece_diameter_mm = "62.5".into();
     settings.trends.selected = vec!["X.load_pct".into()];
     settings.forms.operator = "otto".into();
     settings.forms.password = "never saved".into();
@@ -464,7 +467,10 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     let text = std::fs::read_to_string(&path).expect("written");
     assert!(!text.contains("never saved"), "passwords are not persisted");
     let back = Settings::load(&path);
-    assert_eq!(back.tab, Tab::Trends);
+    assert_eq!(back.tab, Tab::Warmup);
+    assert_eq!(back.window_pos, Some([40.0, 60.0]));
+    assert_eq!(back.forms.checklist_operator, "otto");
+    assert_eq!(back.forms.workpiece_diameter_mm, "62.5");
     assert!(!back.dark);
     assert_eq!(back.window_size, Some([1200.0, 700.0]));
     assert_eq!(back.trends.selected, vec!["X.load_pct".to_string()]);

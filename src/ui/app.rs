@@ -40,6 +40,8 @@ pub struct Settings {
     pub forms: Forms,
     /// The window's inner size, points.
     pub window_size: Option<[f32; 2]>,
+    /// The window's position on the desktop (outer top-left corner), points.
+    pub window_pos: Option<[f32; 2]>,
 }
 
 impl Default for Settings {
@@ -51,6 +53,7 @@ impl Default for Settings {
             events: EventFilter::default(),
             forms: Forms::default(),
             window_size: None,
+            window_pos: None,
         }
     }
 }
@@ -211,6 +214,9 @@ impl HmiApp {
         }
         if let Some(rect) = ctx.input(|i| i.viewport().inner_rect) {
             self.settings.window_size = Some([rect.width(), rect.height()]);
+        }
+        if let Some(rect) = ctx.input(|i| i.viewport().outer_rect) {
+            self.settings.window_pos = Some([rect.min.x, rect.min.y]);
         }
         if self.last_save.elapsed() >= SAVE_EVERY {
             self.save_settings();
