@@ -475,6 +475,11 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     assert_eq!(back.window_size, Some([1200.0, 700.0]));
     assert_eq!(back.trends.selected, vec!["X.load_pct".to_string()]);
     assert_eq!(back.forms.operator, "otto");
+    // A file from before the newer form fields keeps what it has.
+    std::fs::write(&path, r#"{"tab": "Trends", "forms": {"operator": "otto"}}"#).expect("written");
+    let old = Settings::load(&path);
+    assert_eq!(old.tab, Tab::Trends);
+    assert_eq!(old.forms.operator, "otto");
     std::fs::write(&path, "{ not json").expect("written");
     assert_eq!(Settings::load(&path), Settings::default());
 }

@@ -27,6 +27,9 @@ pub enum InputError {
     /// No full-rate samples in the window.
     #[error("no samples at full rate since {0:.1} s yet")]
     Empty(f64),
+    /// The columns do not make a recording (a name given twice).
+    #[error("{0}")]
+    Columns(String),
 }
 
 /// A recording of `columns` (all present in the history) from machine time `t0` on, at full
@@ -49,9 +52,8 @@ pub fn recording_since(
     }
     let mut names = vec![TIME.to_string()];
     names.extend(columns.iter().cloned());
-    // Every column name comes from the link's own (validated) schema, so this cannot fail
-    // unless a name repeats; the caller's lists do not repeat names.
-    let mut recording = Recording::new(source, names).map_err(|_| InputError::Empty(t0))?;
+    let mut recording =
+        Recording::new(source, names).map_err(|e| InputError::Columns(e.to_string()))?;
     let mut row = vec![0.0; columns.len() + 1];
     for i in 0..n {
         row[0] = raw.time_s[i];

@@ -120,6 +120,8 @@ pub struct HmiApp {
     warmup_job: Option<Job<WarmupAnalysis>>,
     depth_job: Option<Job<DepthOutcome>>,
     png_job: Option<Job<PngOutcome>>,
+    /// When the depth of cut was last recomputed on its own (wall clock).
+    depth_refreshed: Option<Instant>,
     export_note: Option<String>,
     ingest_budget: Duration,
     applied_theme: Option<bool>,
@@ -183,6 +185,7 @@ impl HmiApp {
             warmup_job: None,
             depth_job: None,
             png_job: None,
+            depth_refreshed: None,
             export_note: None,
             ingest_budget: options.ingest_budget,
             applied_theme: None,
@@ -377,11 +380,16 @@ impl HmiApp {
     }
 
     /// Recomputes the depth-of-cut recommendation while its panel is open: first when it
-    /// is opened, then once a minute of machine time, so new cuts count.
+    /// is opened, then once a minute of machine time (and at most every ten seconds, since
+    /// a fast replay would otherwise copy the full-rate columns every frame), so new cuts
+    /// count.
     fn refresh_depth_of_cut(&mut self) {
         if self.settings.tab != Tab::DepthOfCut
             || self.depth_job.is_some()
             || self.state.depth.error.is_some()
+            || self
+                .depth_refreshed
+                .is_some_and(|t| t.elapsed() < Duration::from_secs(10))
         {
             return;
         }
@@ -392,6 +400,7 @@ impl HmiApp {
             (Some(at), Some(now)) => now - at >= 60.0,
         };
         if due {
+            self.depth_refreshed = Some(Instant::now());
             self.start_depth_of_cut();
         }
     }

@@ -10,6 +10,9 @@
 //! - [`history`]: the in-memory decimation pyramid behind the Trends panel.
 //! - [`jobs`]: long work (fitting a model from a big database) on its own thread with progress
 //!   and cancel.
+//! - [`analysis`]: the warm-up checklist's friction fingerprint and backlash analyses and the
+//!   depth-of-cut recommendation, run as jobs on full-rate samples copied from the history.
+//! - [`export_png`]: the Trends plots drawn into a PNG without a window or GPU.
 //!
 //! With a calibrated machine profile the session runs the [`crate::estimators`] pipeline on
 //! every frame; its outputs (`est.*` columns: motor flange, bearing and nut temperatures,

@@ -122,8 +122,10 @@ pub enum UiCommand {
     SetProblemsOnly(bool),
 }
 
-/// Text the operator is typing (UI-local widget state, never shared).
+/// Text the operator is typing (UI-local widget state, never shared). Fields missing from a
+/// settings file written by an older version take their defaults.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Forms {
     /// The compensation id of the change being added.
     pub change_id: String,
