@@ -320,6 +320,7 @@ fn an_operator_who_is_not_a_user_cannot_request() {
 #[test]
 fn trends_and_events_controls_work() {
     let mut f = start();
+    let png = f._dir.path().join("shown.png");
     let h = &mut f.harness;
     step_until(h, "some history", |app| app.state.history.samples() > 5);
     // The estimators run on the live frames: the Overview shows their outputs.
@@ -339,6 +340,17 @@ fn trends_and_events_controls_work() {
     );
     click(h, "Export CSV");
     assert!(shows(h, "rows written to"));
+    // The PNG is drawn on a job thread; the note says when it is written.
+    h.state_mut().settings.forms.png_path = png.display().to_string();
+    click(h, "Export PNG");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !shows(h, "px PNG written to") {
+        assert!(Instant::now() < deadline, "timed out waiting for the PNG");
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let image = image::open(&png).expect("a PNG that decodes");
+    assert_eq!(image.width(), 1600);
 
     click(h, "Events");
     assert!(shows(h, "embedded twin connected"));
@@ -522,6 +534,8 @@ fn shift_start_recording(dir: &std::path::Path) -> (std::path::PathBuf, f64) {
 fn the_warmup_checklist_is_driven_to_sign_off_and_saved() {
     use servosight::link::ReplayOptions;
     use servosight::ui::vm::warmup::{StepStatus, WarmupReport};
+    // Some 50 MB of full-rate history: not while the soak test watches the process's memory.
+    let _memory = crate::common::hold_process_memory();
     let dir = tempfile::tempdir().expect("temp dir");
     let (recording, lash_end) = shift_start_recording(dir.path());
     let mut profile = twin_profile();

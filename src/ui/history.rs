@@ -706,6 +706,28 @@ mod tests {
     }
 
     #[test]
+    fn raw_samples_come_at_full_rate_and_say_when_older_ones_are_gone() {
+        let mut h = History::new(vec!["a".into(), "b".into()], small());
+        for i in 0..60 {
+            h.push(i as f64, &[i as f64, 2.0 * i as f64]);
+        }
+        let raw = h.raw_since(&[1], 10.0);
+        assert!(raw.complete);
+        assert_eq!(raw.time_s.len(), 50);
+        assert_eq!(raw.values[0][0], 20.0);
+        // The raw ring keeps 100 samples: from 1000 on, sample 0 is only in the buckets.
+        for i in 60..1000 {
+            h.push(i as f64, &[i as f64, 2.0 * i as f64]);
+        }
+        let raw = h.raw_since(&[0], 0.0);
+        assert!(!raw.complete);
+        assert_eq!(raw.time_s.len(), 100);
+        assert_eq!(raw.time_s[0], 900.0);
+        assert_eq!(h.oldest_raw_time_s(), Some(900.0));
+        assert!(h.raw_since(&[0], 950.0).complete);
+    }
+
+    #[test]
     fn old_windows_come_from_buckets_with_true_extremes() {
         let mut h = History::new(vec!["a".into()], small());
         for i in 0..10_000 {
