@@ -188,6 +188,7 @@ fn latency_report() {
         audit_path: std::env::temp_dir().join("servosight-bench-audit.jsonl"),
         limits: CompensationLimits::default(),
         profile: None,
+        data_dir: std::env::temp_dir().join("servosight-bench-data"),
     };
     let Ok(mut session) = Session::start(config) else {
         eprintln!("latency: the session did not start");

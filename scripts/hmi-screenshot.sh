@@ -2,7 +2,7 @@
 # Runs the HMI on the embedded twin in a virtual X server and saves screenshots of it.
 #
 #   apt-get install -y xvfb imagemagick      # once (Debian packages)
-#   bash scripts/hmi-screenshot.sh           # → docs/screenshot.png, docs/screenshot-trends.png
+#   bash scripts/hmi-screenshot.sh           # → docs/screenshot.png, docs/screenshot-{trends,warmup,depth}.png
 #
 # The twin runs at 120× real time so that a few seconds show tens of minutes of warm-up.
 # Everything the run writes (recording, audit log, settings) goes to a temporary directory.
@@ -28,7 +28,7 @@ xvfb=$!
 export DISPLAY=$display
 sleep 1
 
-shot() { # shot TAB OUTPUT
+shot() { # shot TAB OUTPUT [SECONDS]
     cat >"$work/hmi.json" <<JSON
 {"tab": "$1", "window_size": [1400, 900],
  "trends": {"preset": "ten_minutes", "follow_live": true,
@@ -38,7 +38,7 @@ JSON
     target/release/servosight --speed 120 --data-dir "$work/data" --settings "$work/hmi.json" \
         >"$work/app.log" 2>&1 &
     app=$!
-    sleep "$wait_s"
+    sleep "${3:-$wait_s}"
     import -window root "$2"
     kill "$app"
     wait "$app" 2>/dev/null || true
@@ -48,3 +48,6 @@ JSON
 
 shot Overview docs/screenshot.png
 shot Trends docs/screenshot-trends.png
+shot Warmup docs/screenshot-warmup.png
+# The production day cuts from 07:15 on (15 min into the run): give it time to cut at a few depths.
+shot DepthOfCut docs/screenshot-depth.png $((wait_s * 3))

@@ -23,6 +23,10 @@ pub struct MachineProfile {
     pub axes: BTreeMap<AxisId, AxisProfile>,
     /// Depth-of-cut recommendation settings.
     pub depth_of_cut: DepthOfCutSettings,
+    /// Pass / warn / fail limits of the shift-start warm-up checklist (the built-in defaults
+    /// when the file has no `[warmup]` table).
+    #[serde(default)]
+    pub warmup: WarmupSettings,
     /// Fitted estimator coefficients; absent until the machine is calibrated.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<crate::estimators::models::Calibration>,
@@ -176,6 +180,50 @@ pub struct DepthOfCutSettings {
     pub bearing_static_safety: f64,
     /// Smallest depth the recommendation will state, mm (below: "do not rough").
     pub min_depth_mm: f64,
+}
+
+/// Limits of the shift-start warm-up checklist.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WarmupSettings {
+    /// Window over which the temperature rates are measured, min.
+    pub settle_window_min: f64,
+    /// Rate of change of any estimated (or stator) temperature, °C/min: above `warning` the
+    /// machine is still warming up, above `fault` it is far from thermal equilibrium.
+    pub settle_rate_C_per_min: Threshold,
+    /// Measured backlash, µm: above `warning` it needs attention, above `fault` the axis
+    /// needs maintenance.
+    pub backlash_um: Threshold,
+    /// Difference between the measured backlash and the controller's backlash compensation
+    /// that calls for a new compensation value, µm.
+    pub backlash_compensation_tolerance_um: f64,
+    /// Smallest confidence (0–1) of a backlash measurement that counts. The default is low on
+    /// purpose: the backlash analysis multiplies the share of feeds with a clear current rise
+    /// by how well their intervals agree, and the fastest feed of the standard test resolves
+    /// the lash poorly, so a sound test scores about 0.1–0.2 (the twin's own: 0.12).
+    pub min_backlash_confidence: f64,
+    /// Spindle elongation left uncompensated (estimate minus the controller's thermal offset)
+    /// that is still acceptable, µm.
+    pub elongation_tolerance_um: f64,
+}
+
+impl Default for WarmupSettings {
+    fn default() -> Self {
+        WarmupSettings {
+            settle_window_min: 5.0,
+            settle_rate_C_per_min: Threshold {
+                warning: 0.1,
+                fault: 0.5,
+            },
+            backlash_um: Threshold {
+                warning: 20.0,
+                fault: 40.0,
+            },
+            backlash_compensation_tolerance_um: 2.0,
+            min_backlash_confidence: 0.1,
+            elongation_tolerance_um: 5.0,
+        }
+    }
 }
 
 /// A profile that could not be loaded.
@@ -348,6 +396,7 @@ impl MachineProfile {
                 bearing_static_safety: 4.0,
                 min_depth_mm: 0.2,
             },
+            warmup: WarmupSettings::default(),
             calibration: None,
         }
     }
@@ -461,6 +510,40 @@ impl MachineProfile {
             "depth_of_cut.bearing_static_safety".into(),
             d.bearing_static_safety,
         )?;
+        let w = &self.warmup;
+        positive("warmup.settle_window_min".into(), w.settle_window_min)?;
+        positive(
+            "warmup.elongation_tolerance_um".into(),
+            w.elongation_tolerance_um,
+        )?;
+        positive(
+            "warmup.backlash_compensation_tolerance_um".into(),
+            w.backlash_compensation_tolerance_um,
+        )?;
+        for (name, t) in [
+            ("settle_rate_C_per_min", w.settle_rate_C_per_min),
+            ("backlash_um", w.backlash_um),
+        ] {
+            if !(t.warning.is_finite()
+                && t.fault.is_finite()
+                && 0.0 < t.warning
+                && t.warning < t.fault)
+            {
+                return Err(invalid(
+                    format!("warmup.{name}"),
+                    format!(
+                        "warning {} must be positive and below fault {}",
+                        t.warning, t.fault
+                    ),
+                ));
+            }
+        }
+        if !(0.0..=1.0).contains(&w.min_backlash_confidence) {
+            return Err(invalid(
+                "warmup.min_backlash_confidence".into(),
+                "must be in [0, 1]".into(),
+            ));
+        }
         if let Some(calibration) = &self.calibration {
             calibration
                 .validate()

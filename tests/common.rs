@@ -25,3 +25,15 @@ pub fn stdout(output: &Output) -> String {
 pub fn arg(path: &Path) -> &str {
     path.to_str().expect("temporary paths are UTF-8")
 }
+
+/// Every test of the one integration binary shares its process. A test that judges the
+/// process's memory (the Modbus soak reads its own RSS) holds this for its whole run, and a
+/// test that allocates tens of megabytes holds it too, so neither counts the other's memory.
+pub static PROCESS_MEMORY: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Takes [`PROCESS_MEMORY`] (a test that panicked while holding it leaves it usable).
+pub fn hold_process_memory() -> std::sync::MutexGuard<'static, ()> {
+    PROCESS_MEMORY
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}

@@ -621,6 +621,8 @@ fn out_of_bounds_unapproved_or_stale_writes_send_nothing() {
 /// Polls as fast as the line allows for `duration` and checks that no sample was lost between
 /// the peer and the recording, and that memory stays flat. Returns polls per second.
 fn soak(duration: Duration, baud: Option<u32>) -> f64 {
+    // The memory check below reads the whole test process's RSS.
+    let _quiet = crate::common::hold_process_memory();
     require_tools();
     let dir = tempfile::tempdir().unwrap();
     let client_line = pty_pair(dir.path(), "client");

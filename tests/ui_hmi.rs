@@ -29,7 +29,26 @@ fn twin_profile() -> servosight::profile::MachineProfile {
 }
 
 fn start() -> Fixture {
-    let dir = tempfile::tempdir().expect("temp dir");
+    let mut twin = TwinConfig::new(ScenarioKind::Production, None, 7);
+    twin.rate_hz = 20.0;
+    let source = SourceSpec::Twin {
+        config: Box::new(twin),
+        speed: ReplaySpeed::Factor(1.0),
+    };
+    start_on(
+        tempfile::tempdir().expect("temp dir"),
+        source,
+        twin_profile(),
+        16 << 20,
+    )
+}
+
+fn start_on(
+    dir: tempfile::TempDir,
+    source: SourceSpec,
+    profile: servosight::profile::MachineProfile,
+    history_budget_bytes: usize,
+) -> Fixture {
     let users_path = dir.path().join("users.toml");
     let audit_path = dir.path().join("audit.jsonl");
     let record_dir = dir.path().join("recordings");
@@ -41,27 +60,23 @@ fn start() -> Fixture {
         .set_user("maria", UserRole::Approver, "maria-pw")
         .expect("hash");
     credentials.save(&users_path).expect("users file");
-    let mut twin = TwinConfig::new(ScenarioKind::Production, None, 7);
-    twin.rate_hz = 20.0;
     let config = SessionConfig {
-        source: SourceSpec::Twin {
-            config: Box::new(twin),
-            speed: ReplaySpeed::Factor(1.0),
-        },
+        source,
         record_dir: Some(record_dir.clone()),
         users_path: users_path.clone(),
         audit_path: audit_path.clone(),
         limits: CompensationLimits::default(),
-        profile: Some(twin_profile()),
+        profile: Some(profile.clone()),
+        data_dir: dir.path().join("data"),
     };
     let session = Session::start(config).expect("session starts");
     let app = HmiApp::new(
         session,
         HmiOptions {
             settings_path: None,
-            history_budget_bytes: 16 << 20,
+            history_budget_bytes,
             thresholds: StatusThresholds::default(),
-            estimate_limits: twin_profile()
+            estimate_limits: profile
                 .axes
                 .iter()
                 .map(|(axis, a)| (*axis, a.limits.clone()))
@@ -92,7 +107,16 @@ fn start() -> Fixture {
 
 /// Steps the UI until `done` holds (the session answers on its own thread).
 fn step_until(harness: &mut Harness<'static, HmiApp>, what: &str, done: impl Fn(&HmiApp) -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
+    step_until_within(harness, what, 20, done);
+}
+
+fn step_until_within(
+    harness: &mut Harness<'static, HmiApp>,
+    what: &str,
+    seconds: u64,
+    done: impl Fn(&HmiApp) -> bool,
+) {
+    let deadline = Instant::now() + Duration::from_secs(seconds);
     loop {
         harness.step();
         if done(harness.state()) {
@@ -296,6 +320,7 @@ fn an_operator_who_is_not_a_user_cannot_request() {
 #[test]
 fn trends_and_events_controls_work() {
     let mut f = start();
+    let png = f._dir.path().join("shown.png");
     let h = &mut f.harness;
     step_until(h, "some history", |app| app.state.history.samples() > 5);
     // The estimators run on the live frames: the Overview shows their outputs.
@@ -315,6 +340,17 @@ fn trends_and_events_controls_work() {
     );
     click(h, "Export CSV");
     assert!(shows(h, "rows written to"));
+    // The PNG is drawn on a job thread; the note says when it is written.
+    h.state_mut().settings.forms.png_path = png.display().to_string();
+    click(h, "Export PNG");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !shows(h, "px PNG written to") {
+        assert!(Instant::now() < deadline, "timed out waiting for the PNG");
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let image = image::open(&png).expect("a PNG that decodes");
+    assert_eq!(image.width(), 1600);
 
     click(h, "Events");
     assert!(shows(h, "embedded twin connected"));
@@ -428,11 +464,14 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     let path = dir.path().join("config").join("hmi.json");
     assert_eq!(Settings::load(&path), Settings::default(), "no file yet");
     let mut settings = Settings {
-        tab: Tab::Trends,
+        tab: Tab::Warmup,
         dark: false,
         window_size: Some([1200.0, 700.0]),
+        window_pos: Some([40.0, 60.0]),
         ..Settings::default()
     };
+    settings.forms.checklist_operator = "otto".into();
+    settings.forms.workpiece_diameter_mm = "62.5".into();
     settings.trends.selected = vec!["X.load_pct".into()];
     settings.forms.operator = "otto".into();
     settings.forms.password = "never saved".into();
@@ -440,11 +479,223 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     let text = std::fs::read_to_string(&path).expect("written");
     assert!(!text.contains("never saved"), "passwords are not persisted");
     let back = Settings::load(&path);
-    assert_eq!(back.tab, Tab::Trends);
+    assert_eq!(back.tab, Tab::Warmup);
+    assert_eq!(back.window_pos, Some([40.0, 60.0]));
+    assert_eq!(back.forms.checklist_operator, "otto");
+    assert_eq!(back.forms.workpiece_diameter_mm, "62.5");
     assert!(!back.dark);
     assert_eq!(back.window_size, Some([1200.0, 700.0]));
     assert_eq!(back.trends.selected, vec!["X.load_pct".to_string()]);
     assert_eq!(back.forms.operator, "otto");
+    // A file from before the newer form fields keeps what it has.
+    std::fs::write(&path, r#"{"tab": "Trends", "forms": {"operator": "otto"}}"#).expect("written");
+    let old = Settings::load(&path);
+    assert_eq!(old.tab, Tab::Trends);
+    assert_eq!(old.forms.operator, "otto");
     std::fs::write(&path, "{ not json").expect("written");
     assert_eq!(Settings::load(&path), Settings::default());
+}
+
+/// The operator's shift start as a recording: the warm-up scenario's friction-fingerprint
+/// moves (125 s at 100 Hz), then the backlash test (500 Hz), then the machine standing with
+/// its last sample held (1 Hz for two hours, so the replay stays live while the test works).
+/// Returns the file and the machine time at which the backlash test ends.
+fn shift_start_recording(dir: &std::path::Path) -> (std::path::PathBuf, f64) {
+    use servosight::signal::Recording;
+    let mut warm = TwinConfig::new(ScenarioKind::Warmup, Some(125.0 / 3600.0), 5);
+    warm.rate_hz = 100.0;
+    let warm = servosight::sim::simulate(warm).expect("the twin runs");
+    let lash = servosight::sim::simulate(TwinConfig::new(ScenarioKind::BacklashTest, None, 5))
+        .expect("the twin runs");
+    assert_eq!(warm.names(), lash.names(), "both come from the same twin");
+    let mut out = Recording::new("shift start", warm.names().to_vec()).expect("names");
+    let mut row = Vec::new();
+    for i in 0..warm.len() {
+        warm.row_into(i, &mut row);
+        out.push_row(&row).expect("row");
+    }
+    let offset = warm.time()[warm.len() - 1] + 0.01;
+    for i in 0..lash.len() {
+        lash.row_into(i, &mut row);
+        row[0] += offset;
+        out.push_row(&row).expect("row");
+    }
+    let lash_end = row[0];
+    for k in 1..=7200 {
+        row[0] = lash_end + f64::from(k);
+        out.push_row(&row).expect("row");
+    }
+    let path = dir.join("shift-start.csv");
+    servosight::signal::write_recording(&path, &out).expect("written");
+    (path, lash_end)
+}
+
+#[test]
+fn the_warmup_checklist_is_driven_to_sign_off_and_saved() {
+    use servosight::link::ReplayOptions;
+    use servosight::ui::vm::warmup::{StepStatus, WarmupReport};
+    // Some 50 MB of full-rate history: not while the soak test watches the process's memory.
+    let _memory = crate::common::hold_process_memory();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (recording, lash_end) = shift_start_recording(dir.path());
+    let mut profile = twin_profile();
+    // One minute of held samples after the test is enough to judge the rates here.
+    profile.warmup.settle_window_min = 1.0;
+    let source = SourceSpec::Replay {
+        path: recording,
+        options: ReplayOptions {
+            speed: ReplaySpeed::Factor(25.0),
+            paused: false,
+            // The held tail comes once a second of machine time; it is live all the same.
+            stale_after: Duration::from_secs(3600),
+        },
+    };
+    let data_dir = dir.path().join("data");
+    let mut f = start_on(dir, source, profile, 192 << 20);
+    let h = &mut f.harness;
+    click(h, "Warm-up");
+    assert!(shows(h, "1. Temperatures settled"));
+    assert!(shows(h, "not analysed yet"));
+    step_until_within(h, "the backlash test and a minute after it", 90, |app| {
+        app.state
+            .history
+            .newest_time_s()
+            .is_some_and(|t| t > lash_end + 65.0)
+    });
+
+    click(h, "Analyse warm-up moves");
+    step_until_within(h, "the warm-up analysis", 180, |app| {
+        app.state.warmup.analysis.is_some() || app.state.warmup.analysis_error.is_some()
+    });
+    settle(h);
+    let state = &h.state().state;
+    assert_eq!(state.warmup.analysis_error, None);
+    let analysis = state.warmup.analysis.clone().expect("analysed");
+    let fingerprint = analysis.fingerprint.as_ref().expect("fingerprint taken");
+    assert!(fingerprint.coherence > 0.5, "{fingerprint:?}");
+    let backlash = analysis.backlash.as_ref().expect("backlash measured");
+    // The twin's X axis has 12 µm of backlash.
+    assert!((backlash.backlash_um - 12.0).abs() < 2.0, "{backlash:?}");
+    assert!(shows(h, "no baseline for X yet"));
+
+    // A healthy machine: keep this fingerprint as the baseline; the step then passes.
+    click(h, "Save as baseline");
+    step_until(h, "the baseline", |app| {
+        app.state.warmup.baselines.contains_key(&AxisId::X)
+    });
+    settle(h);
+    let view = servosight::ui::vm::warmup::build(&h.state().state);
+    assert_eq!(
+        view.steps[1].status,
+        StepStatus::Pass,
+        "{:?}",
+        view.steps[1]
+    );
+    assert!(data_dir.join("baselines/X-fingerprint.json").is_file());
+
+    click(h, "Tool measured");
+    step_until(h, "the tool calibration reset", |app| {
+        app.state.warmup.tool_reset_at_s.is_some()
+    });
+
+    // Signing off needs a name.
+    click(h, "Sign off and save report");
+    assert!(shows(h, "enter your name"));
+    type_into(h, "Signed off by", "otto");
+    click(h, "Sign off and save report");
+    step_until(h, "the saved report", |app| {
+        app.state.warmup.signed.is_some()
+    });
+    settle(h);
+    assert!(shows(h, "Signed off by otto"));
+    let saved = h.state().state.warmup.signed.clone().expect("saved");
+    let report: WarmupReport =
+        serde_json::from_str(&std::fs::read_to_string(&saved.json_path).expect("JSON report"))
+            .expect("the report parses");
+    assert_eq!(report.signed_off_by, "otto");
+    assert_eq!(report.steps.len(), 5);
+    assert!(report.steps.iter().all(|s| s.status != StepStatus::Pending));
+    assert_eq!(report.steps[1].status, StepStatus::Pass);
+    let backlash_step = &report.steps[2];
+    assert!(
+        backlash_step
+            .values
+            .iter()
+            .any(|v| v.label == "backlash" && v.value == format!("{:.1}", backlash.backlash_um)),
+        "{backlash_step:?}"
+    );
+    assert!(std::path::Path::new(&saved.json_path).starts_with(data_dir.join("warmup")));
+    let text = std::fs::read_to_string(&saved.text_path).expect("text report");
+    assert!(text.contains("Signed off by:  otto"), "{text}");
+    assert!(text.contains("3. Backlash measured"), "{text}");
+}
+
+#[test]
+fn an_estimate_proposal_goes_through_approval_and_is_written() {
+    // The twin at 300× real time: the spindle's shift-start warm-up grows it within seconds.
+    let mut twin = TwinConfig::new(ScenarioKind::Production, None, 7);
+    twin.rate_hz = 2.0;
+    let source = SourceSpec::Twin {
+        config: Box::new(twin),
+        speed: ReplaySpeed::Factor(300.0),
+    };
+    let mut f = start_on(
+        tempfile::tempdir().expect("temp dir"),
+        source,
+        twin_profile(),
+        16 << 20,
+    );
+    let h = &mut f.harness;
+    step_until_within(h, "a spindle elongation worth compensating", 60, |app| {
+        app.state.compensation.controller.is_some()
+            && !app.state.compensation.users.is_empty()
+            && app
+                .state
+                .latest
+                .get("est.S.elongation_um")
+                .is_some_and(|e| e.abs() >= 1.0)
+    });
+    click(h, "Compensation");
+    assert!(shows(h, "Proposed from the estimates"));
+    click(h, "Use thermal_offset.S");
+    let id = CompensationId::ThermalOffset(AxisId::S);
+    let proposed = h
+        .state()
+        .state
+        .compensation
+        .draft_changes
+        .get(id)
+        .expect("the proposal is in the draft");
+    assert!(proposed.abs() >= 1.0, "{proposed}");
+    assert!(shows(h, "in the proposal"));
+    assert!(
+        h.state()
+            .settings
+            .forms
+            .evidence
+            .contains("estimated S thermal elongation")
+    );
+    // Nothing is written yet: the request and the approver's credential come first.
+    let written = |app: &HmiApp| {
+        app.state
+            .compensation
+            .controller
+            .as_ref()
+            .and_then(|t| t.get(id))
+    };
+    assert_eq!(written(h.state()), Some(0.0));
+    type_into(h, "Operator", "otto");
+    click(h, "Request push");
+    assert!(shows(h, "Approve compensation push"));
+    type_into(h, "Approver", "maria");
+    type_into(h, "Password", "maria-pw");
+    click(h, "Approve and write");
+    step_until(h, "the push", |app| {
+        matches!(app.state.compensation.flow, PushFlow::Finished(_))
+    });
+    let PushFlow::Finished(result) = &h.state().state.compensation.flow else {
+        unreachable!("checked above");
+    };
+    assert!(result.verified, "{result:?}");
+    assert_eq!(result.values[0].read_back_um, Some(proposed));
 }

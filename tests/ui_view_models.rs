@@ -413,3 +413,317 @@ fn trends_export_writes_what_is_shown() {
     let empty = vm::trends::build(&state("normal"), &TrendsSettings::default(), 1000);
     assert!(vm::trends::export_csv(&empty, &path).is_err());
 }
+
+fn twin_profile() -> servosight::profile::MachineProfile {
+    servosight::profile::MachineProfile::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/it25-twin.toml"
+    )))
+    .expect("twin profile")
+}
+
+fn fingerprint(coulomb: f64) -> servosight::estimators::fingerprint::FrictionFingerprint {
+    servosight::estimators::fingerprint::FrictionFingerprint {
+        axis: AxisId::X,
+        source: "the session".into(),
+        coulomb_Nm: coulomb,
+        coulomb_positive_Nm: coulomb + 0.01,
+        coulomb_negative_Nm: coulomb - 0.01,
+        viscous_Nm_per_krpm: 0.05,
+        inertia_kgm2: 0.0,
+        offset_Nm: 0.01,
+        coherence: 0.97,
+        samples: 4800,
+    }
+}
+
+fn backlash_report(um: f64) -> servosight::estimators::backlash::BacklashReport {
+    use servosight::estimators::backlash::{BacklashAtSpeed, BacklashReport};
+    BacklashReport {
+        axis: AxisId::X,
+        backlash_um: um,
+        by_speed: vec![BacklashAtSpeed {
+            speed_rpm: 2.0,
+            feed_mm_per_min: 20.0,
+            backlash_um: um,
+            ci_low_um: um - 0.3,
+            ci_high_um: um + 0.3,
+            current_rise_a: 0.1,
+            rise_t: 200.0,
+            samples: 20000,
+        }],
+        confidence: 0.6,
+        test_duration_s: 167.0,
+    }
+}
+
+/// A controller table with every value, at these backlash.X and thermal_offset.S values.
+fn full_table(backlash_x: f64, offset_s: f64) -> CompensationValues {
+    servosight::link::register_map::compensation_ids()
+        .into_iter()
+        .map(|id| {
+            let v = match id {
+                CompensationId::Backlash(AxisId::X) => backlash_x,
+                CompensationId::ThermalOffset(AxisId::S) => offset_s,
+                _ => 0.0,
+            };
+            (id, v)
+        })
+        .collect()
+}
+
+/// The warm-up checklist's states: the base state plus six more minutes of history (the
+/// stator of X rising at `rate` °C/min), the profile, an analysis and a controller table.
+fn warmup_state(which: &str) -> HmiState {
+    use servosight::ui::analysis::WarmupAnalysis;
+    let base = match which {
+        "fail" => "fault",
+        "disconnected" => "disconnected",
+        _ => "normal",
+    };
+    let mut s = state(base);
+    s.profile = Some(twin_profile());
+    let (rate, s_stator) = match which {
+        "warn" => (0.3, 55.0),
+        "fail" => (1.2, 133.7),
+        _ => (0.0, 55.0),
+    };
+    for i in 1..=100 {
+        let t = 710.0 + f64::from(i) * 4.0;
+        let x_stator = 41.3 + rate * (t - 710.0) / 60.0;
+        s.push_row(&row(t, x_stator, s_stator, 30.0));
+    }
+    s.compensation.controller = Some(match which {
+        "warn" => full_table(11.6, 0.0),
+        _ => full_table(11.6, 18.4),
+    });
+    s.warmup.started_at_s = Some(700.0);
+    let current = fingerprint(0.42);
+    s.warmup.analysis = Some(WarmupAnalysis {
+        axis: AxisId::X,
+        fingerprint: match which {
+            "fail" => Err("the session: only 3 moving samples without cutting (3 positive, 0 negative); the fingerprint needs the warm-up moves in both directions".into()),
+            _ => Ok(current.clone()),
+        },
+        backlash: Ok(backlash_report(match which {
+            "warn" => 25.0,
+            "fail" => 45.0,
+            _ => 11.6,
+        })),
+        note: "84210 samples at full rate from 700.0 s to 1110.0 s".into(),
+    });
+    if which != "warn" {
+        s.warmup.baselines.insert(AxisId::X, fingerprint(0.43));
+    }
+    s.warmup.tool_reset_at_s = Some(702.5);
+    s
+}
+
+#[test]
+fn warmup_view_models() {
+    use servosight::ui::vm::warmup::StepStatus;
+    for (which, verdict) in [
+        ("pass", StepStatus::Pass),
+        ("warn", StepStatus::Warn),
+        ("fail", StepStatus::Fail),
+        ("disconnected", StepStatus::Fail),
+    ] {
+        let view = vm::warmup::build(&warmup_state(which));
+        assert_eq!(view.verdict, verdict, "{which}: {view:#?}");
+        insta::assert_yaml_snapshot!(format!("warmup_{which}"), view);
+    }
+    // Before any analysis: the analysed steps wait, and sign-off is blocked.
+    let mut fresh = warmup_state("pass");
+    fresh.warmup.analysis = None;
+    let view = vm::warmup::build(&fresh);
+    assert_eq!(view.verdict, StepStatus::Pending);
+    assert!(
+        view.sign_off_blocked
+            .as_deref()
+            .is_some_and(|r| r.contains("2. Friction fingerprint")),
+        "{view:?}"
+    );
+    // A drifted fingerprint (friction well above the baseline) fails on friction rise.
+    let mut worn = warmup_state("pass");
+    if let Some(a) = worn.warmup.analysis.as_mut() {
+        a.fingerprint = Ok(fingerprint(0.70));
+    }
+    let view = vm::warmup::build(&worn);
+    assert_eq!(
+        view.steps[1].status,
+        StepStatus::Fail,
+        "{:?}",
+        view.steps[1]
+    );
+    assert!(
+        view.steps[1].reason.contains("friction rise"),
+        "{}",
+        view.steps[1].reason
+    );
+}
+
+#[test]
+fn compensation_proposals_come_from_the_estimates() {
+    let s = warmup_state("warn");
+    let view = vm::compensation::build(&s);
+    insta::assert_yaml_snapshot!("compensation_proposals", view.proposals);
+    let ids: Vec<&str> = view.proposals.iter().map(|p| p.id.as_str()).collect();
+    assert_eq!(ids, vec!["thermal_offset.S", "backlash.X"]);
+    // The elongation estimate of the rows is 18.5 µm.
+    assert_eq!(view.proposals[0].proposed_um, "18.5");
+    assert_eq!(view.proposals[1].proposed_um, "25.0");
+    // Nothing is proposed without the controller's table.
+    let mut no_table = s.clone();
+    no_table.compensation.controller = None;
+    assert!(vm::compensation::build(&no_table).proposals.is_empty());
+}
+
+/// The first two hours of the twin's production day (spindle warm-up, then roughing and
+/// finishing cuts), fed through an HMI state as the session would.
+fn production_state() -> HmiState {
+    use servosight::sim::{ScenarioKind, TwinConfig};
+    let recording =
+        servosight::sim::simulate(TwinConfig::new(ScenarioKind::Production, Some(2.0), 3))
+            .expect("the twin runs");
+    let names = recording.names().to_vec();
+    let mut s = HmiState::new(
+        names,
+        state("normal").link,
+        64 << 20,
+        state("normal").compensation,
+    );
+    s.profile = Some(twin_profile());
+    let mut row = Vec::new();
+    for i in 0..recording.len() {
+        recording.row_into(i, &mut row);
+        s.push_row(&row);
+    }
+    s
+}
+
+fn compute_depth(s: &mut HmiState, diameter: f64) {
+    use servosight::ui::analysis::{DepthInput, run_depth_of_cut};
+    use servosight::ui::jobs::JobContext;
+    use std::sync::{Arc, atomic::AtomicBool};
+    let profile = s.profile.clone().expect("profile");
+    let input = DepthInput::from_history(&s.history, &profile, diameter).expect("input");
+    let (tx, _rx) = std::sync::mpsc::sync_channel(64);
+    let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
+    s.depth.outcome = Some(run_depth_of_cut(input, &context).expect("runs"));
+    s.depth.computed_at_s = s.history.newest_time_s();
+}
+
+#[test]
+fn depth_of_cut_view_models() {
+    let mut ready = production_state();
+    compute_depth(&mut ready, 80.0);
+    let view = vm::depth::build(&ready);
+    // The same recommendation as the library computes from the recording directly.
+    let recording = servosight::sim::simulate(servosight::sim::TwinConfig::new(
+        servosight::sim::ScenarioKind::Production,
+        Some(2.0),
+        3,
+    ))
+    .expect("the twin runs");
+    let direct = servosight::estimators::depth_of_cut::recommend_depth_of_cut(
+        &twin_profile(),
+        &recording,
+        80.0,
+    )
+    .expect("recommendation");
+    assert_eq!(
+        view.recommended.as_deref(),
+        Some(format!("{:.1} mm", direct.recommended_depth_mm).as_str())
+    );
+    assert_eq!(
+        view.limiting_component.as_deref(),
+        Some(direct.limiting_component.as_str())
+    );
+    assert!(view.components[0].limiting && view.components.len() >= 4);
+    insta::assert_yaml_snapshot!("depth_of_cut_normal", view);
+
+    // Few cuts: says so clearly.
+    let mut few = state("normal");
+    few.profile = Some(twin_profile());
+    compute_depth(&mut few, 80.0);
+    let view = vm::depth::build(&few);
+    assert!(view.recommended.is_none());
+    assert!(
+        view.not_enough_data
+            .as_deref()
+            .is_some_and(|r| r.starts_with("Not enough cutting data yet")),
+        "{view:?}"
+    );
+    insta::assert_yaml_snapshot!("depth_of_cut_not_enough_data", view);
+    let mut down = state("disconnected");
+    down.profile = Some(twin_profile());
+    insta::assert_yaml_snapshot!("depth_of_cut_disconnected", vm::depth::build(&down));
+}
+
+#[test]
+fn trends_show_the_straightness_profile_and_export_a_png() {
+    let mut s = state("normal");
+    s.profile = Some(twin_profile());
+    // The per-node estimates of the session: a bow along the 400 mm stroke.
+    let mut names = names();
+    let nodes: Vec<String> = (1..=5)
+        .flat_map(|k| {
+            [
+                format!("est.X.straightness_h_um#{k}"),
+                format!("est.X.straightness_v_um#{k}"),
+            ]
+        })
+        .collect();
+    names.retain(|n| n != "est.X.straightness_h_um#2");
+    names.extend(nodes.iter().cloned());
+    let mut t = HmiState::new(names, s.link.clone(), 1 << 20, s.compensation.clone());
+    t.profile = s.profile.clone();
+    for i in 0..=20 {
+        let time = 700.0 + f64::from(i) * 0.5;
+        let mut r = row(time, 41.3, 55.0, 30.0);
+        r.remove(r.len() - 2); // the node-2 column dropped above
+        for k in 0..5 {
+            let x = f64::from(k) / 4.0;
+            r.push(4.0 * x * (1.0 - x)); // H: 1 µm bow at the middle
+            r.push(-2.0 * x); // V: a straight slope is straight (zone 0)
+        }
+        t.push_row(&r);
+    }
+    let view = vm::trends::build(&t, &trends_settings(), 1000);
+    assert_eq!(view.straightness.len(), 2);
+    assert_eq!(view.straightness[0].zone, "1.00 µm");
+    assert_eq!(view.straightness[1].zone, "0.00 µm");
+    assert_eq!(view.straightness[0].points[2], [200.0, 1.0]);
+    insta::assert_yaml_snapshot!("trends_straightness", view.straightness);
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("trends.png");
+    let canvas =
+        servosight::ui::export_png::render_trends(&view, false, [900, 900]).expect("rendered");
+    canvas.save_png(&path).expect("written");
+    let image = image::open(&path).expect("a PNG that decodes").to_rgba8();
+    assert_eq!(image.dimensions(), (900, 900));
+    // The first series' colour (the Trends palette's blue: ten seconds of X stator in a
+    // one-minute window) and the straightness profile's red are drawn, and the light
+    // theme's background fills most of the image: a real plot, not a blank or black page.
+    let near = |p: &image::Rgba<u8>, c: [u8; 3]| {
+        (0..3).all(|k| (i32::from(p[k]) - i32::from(c[k])).abs() <= 12)
+    };
+    let blue = image
+        .pixels()
+        .filter(|p| near(p, [0x1f, 0x77, 0xb4]))
+        .count();
+    assert!(blue > 100, "{blue} blue pixels");
+    let red = image
+        .pixels()
+        .filter(|p| near(p, [0xd6, 0x27, 0x28]))
+        .count();
+    assert!(red > 500, "{red} red pixels");
+    let light = image
+        .pixels()
+        .filter(|p| p[0] > 200 && p[1] > 200 && p[2] > 200)
+        .count();
+    assert!(light > 900 * 900 / 2, "{light} light pixels");
+    let empty = vm::trends::build(&state("normal"), &TrendsSettings::default(), 1000);
+    assert!(servosight::ui::export_png::render_trends(&empty, false, [100, 100]).is_err());
+}

@@ -35,7 +35,8 @@ pub struct Args {
     /// Serial line settings (with --port).
     #[command(flatten)]
     pub line: super::serial_args::SerialLineArgs,
-    /// Where recordings, the users file and the audit log live (default: the user's data
+    /// Where recordings, the users file, the audit log, warm-up reports (`warmup/`) and
+    /// friction-fingerprint baselines (`baselines/`) live (default: the user's data
     /// directory, e.g. ~/.local/share/servosight).
     #[arg(long, value_name = "DIR")]
     pub data_dir: Option<PathBuf>,
@@ -162,6 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         audit_path: audit_path.clone(),
         limits,
         profile,
+        data_dir: data_dir.clone(),
     };
     let options = HmiOptions {
         settings_path,

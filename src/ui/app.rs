@@ -7,6 +7,8 @@ use std::time::{Duration, Instant};
 use eframe::egui;
 use serde::{Deserialize, Serialize};
 
+use super::analysis::{DepthInput, DepthOutcome, WarmupAnalysis, WarmupInput};
+use super::export_png::{PngOutcome, PngRequest};
 use super::jobs::{FitOutcome, FitRequest, Job, JobMessage, run_fit};
 use super::panels::{self, Forms, Tab, UiCommand};
 use super::session::{Session, SessionCommand};
@@ -38,6 +40,8 @@ pub struct Settings {
     pub forms: Forms,
     /// The window's inner size, points.
     pub window_size: Option<[f32; 2]>,
+    /// The window's position on the desktop (outer top-left corner), points.
+    pub window_pos: Option<[f32; 2]>,
 }
 
 impl Default for Settings {
@@ -49,6 +53,7 @@ impl Default for Settings {
             events: EventFilter::default(),
             forms: Forms::default(),
             window_size: None,
+            window_pos: None,
         }
     }
 }
@@ -112,6 +117,11 @@ pub struct HmiApp {
     saved_settings: Settings,
     last_save: Instant,
     fit_job: Option<Job<FitOutcome>>,
+    warmup_job: Option<Job<WarmupAnalysis>>,
+    depth_job: Option<Job<DepthOutcome>>,
+    png_job: Option<Job<PngOutcome>>,
+    /// When the depth of cut was last recomputed on its own (wall clock).
+    depth_refreshed: Option<Instant>,
     export_note: Option<String>,
     ingest_budget: Duration,
     applied_theme: Option<bool>,
@@ -134,6 +144,7 @@ impl HmiApp {
         );
         state.thresholds = options.thresholds;
         state.estimate_limits = options.estimate_limits;
+        state.profile = session.profile().cloned();
         let mut settings = options
             .settings_path
             .as_deref()
@@ -154,6 +165,15 @@ impl HmiApp {
                 .display()
                 .to_string();
         }
+        if settings.forms.png_path.is_empty() {
+            settings.forms.png_path = std::env::temp_dir()
+                .join("servosight-trends.png")
+                .display()
+                .to_string();
+        }
+        if settings.forms.workpiece_diameter_mm.is_empty() {
+            settings.forms.workpiece_diameter_mm = "80".into();
+        }
         HmiApp {
             session,
             state,
@@ -162,6 +182,10 @@ impl HmiApp {
             settings_path: options.settings_path,
             last_save: Instant::now(),
             fit_job: None,
+            warmup_job: None,
+            depth_job: None,
+            png_job: None,
+            depth_refreshed: None,
             export_note: None,
             ingest_budget: options.ingest_budget,
             applied_theme: None,
@@ -180,6 +204,8 @@ impl HmiApp {
             }
         }
         self.poll_fit_job();
+        self.poll_analysis_jobs();
+        self.refresh_depth_of_cut();
         self.log_condition_changes();
         if self.applied_theme != Some(self.settings.dark) {
             ctx.set_theme(if self.settings.dark {
@@ -192,13 +218,19 @@ impl HmiApp {
         if let Some(rect) = ctx.input(|i| i.viewport().inner_rect) {
             self.settings.window_size = Some([rect.width(), rect.height()]);
         }
+        if let Some(rect) = ctx.input(|i| i.viewport().outer_rect) {
+            self.settings.window_pos = Some([rect.min.x, rect.min.y]);
+        }
         if self.last_save.elapsed() >= SAVE_EVERY {
             self.save_settings();
         }
         // Live data: about 30 frames per second keeps sample-to-screen latency near 35 ms
         // without spinning the CPU; a quiet link needs only a slow refresh of its ages.
         let live = self.state.link.state == crate::link::ConnectionState::Connected
-            || self.fit_job.is_some();
+            || self.fit_job.is_some()
+            || self.warmup_job.is_some()
+            || self.depth_job.is_some()
+            || self.png_job.is_some();
         ctx.request_repaint_after(if live {
             Duration::from_millis(33)
         } else {
@@ -278,6 +310,274 @@ impl HmiApp {
         }
     }
 
+    fn job_event(&mut self, severity: Severity, text: String) {
+        self.state
+            .events
+            .push(Event::now(EventKind::Job, severity, text));
+    }
+
+    /// Follows the warm-up, depth-of-cut and PNG jobs.
+    fn poll_analysis_jobs(&mut self) {
+        if let Some(end) = poll_job(&mut self.warmup_job, &mut self.state.warmup.running) {
+            match end {
+                Ok(analysis) => {
+                    let text = format!(
+                        "warm-up analysis of {}: fingerprint {}, backlash {}",
+                        analysis.axis,
+                        if analysis.fingerprint.is_ok() {
+                            "taken"
+                        } else {
+                            "not possible"
+                        },
+                        match &analysis.backlash {
+                            Ok(b) => format!("{:.1} µm", b.backlash_um),
+                            Err(_) => "not found".into(),
+                        }
+                    );
+                    self.state.warmup.analysis = Some(analysis);
+                    self.state.warmup.analysis_error = None;
+                    self.job_event(Severity::Normal, text);
+                }
+                Err(reason) => {
+                    self.job_event(
+                        Severity::Warning,
+                        format!("warm-up analysis stopped: {reason}"),
+                    );
+                    self.state.warmup.analysis_error = Some(reason);
+                }
+            }
+        }
+        if let Some(end) = poll_job(&mut self.depth_job, &mut self.state.depth.running) {
+            match end {
+                Ok(outcome) => {
+                    if let DepthOutcome::Ready { recommendation, .. } = &outcome {
+                        let text = format!(
+                            "depth of cut: {:.1} mm, limited by {}",
+                            recommendation.recommended_depth_mm, recommendation.limiting_component
+                        );
+                        self.job_event(Severity::Normal, text);
+                    }
+                    self.state.depth.outcome = Some(outcome);
+                    self.state.depth.error = None;
+                }
+                Err(reason) => self.state.depth.error = Some(reason),
+            }
+        }
+        let mut png_progress = None;
+        if let Some(end) = poll_job(&mut self.png_job, &mut png_progress) {
+            self.export_note = Some(match end {
+                Ok(done) => format!(
+                    "{}×{} px PNG written to {}",
+                    done.size[0],
+                    done.size[1],
+                    done.path.display()
+                ),
+                Err(reason) => format!("PNG export failed: {reason}"),
+            });
+        } else if let Some(progress) = png_progress {
+            self.export_note = Some(format!("PNG export: {}", progress.stage));
+        }
+    }
+
+    /// Recomputes the depth-of-cut recommendation while its panel is open: first when it
+    /// is opened, then once a minute of machine time (and at most every ten seconds, since
+    /// a fast replay would otherwise copy the full-rate columns every frame), so new cuts
+    /// count.
+    fn refresh_depth_of_cut(&mut self) {
+        if self.settings.tab != Tab::DepthOfCut
+            || self.depth_job.is_some()
+            || self.state.depth.error.is_some()
+            || self
+                .depth_refreshed
+                .is_some_and(|t| t.elapsed() < Duration::from_secs(10))
+        {
+            return;
+        }
+        let newest = self.state.history.newest_time_s();
+        let due = match (self.state.depth.computed_at_s, newest) {
+            (_, None) => false,
+            (None, Some(_)) => true,
+            (Some(at), Some(now)) => now - at >= 60.0,
+        };
+        if due {
+            self.depth_refreshed = Some(Instant::now());
+            self.start_depth_of_cut();
+        }
+    }
+
+    fn start_depth_of_cut(&mut self) {
+        if self.depth_job.is_some() {
+            return;
+        }
+        let depth = &mut self.state.depth;
+        let Some(profile) = &self.state.profile else {
+            depth.error = Some("no machine profile: the component ratings are unknown".into());
+            return;
+        };
+        let text = self
+            .settings
+            .forms
+            .workpiece_diameter_mm
+            .trim()
+            .replace(',', ".");
+        let diameter = match text.parse::<f64>() {
+            Ok(d) if d.is_finite() && d > 0.0 => d,
+            _ => {
+                depth.error = Some(format!(
+                    "`{text}` is not a workpiece diameter: give a positive number of millimetres"
+                ));
+                return;
+            }
+        };
+        depth.computed_at_s = self.state.history.newest_time_s();
+        let input = match DepthInput::from_history(&self.state.history, profile, diameter) {
+            Ok(input) => input,
+            Err(error) => {
+                depth.error = Some(error.to_string());
+                return;
+            }
+        };
+        match Job::spawn("depth of cut", move |c| {
+            super::analysis::run_depth_of_cut(input, c)
+        }) {
+            Ok(job) => {
+                depth.running = Some(super::state::JobProgress {
+                    stage: "starting".into(),
+                    fraction: Some(0.0),
+                });
+                depth.error = None;
+                self.depth_job = Some(job);
+            }
+            Err(error) => depth.error = Some(format!("cannot start: {error}")),
+        }
+    }
+
+    fn start_warmup_analysis(&mut self) {
+        if self.warmup_job.is_some() {
+            return;
+        }
+        let warmup = &mut self.state.warmup;
+        let Some((axis, lead)) = self
+            .state
+            .profile
+            .as_ref()
+            .and_then(vm::warmup::checklist_axis)
+        else {
+            warmup.analysis_error =
+                Some("no machine profile with a feed axis: nothing to analyse".into());
+            return;
+        };
+        let history = &self.state.history;
+        let t0 = warmup
+            .started_at_s
+            .or_else(|| history.oldest_raw_time_s())
+            .unwrap_or(0.0);
+        let input = match WarmupInput::from_history(history, axis, lead, t0) {
+            Ok(input) => input,
+            Err(error) => {
+                warmup.analysis_error = Some(error.to_string());
+                return;
+            }
+        };
+        match Job::spawn("warm-up analysis", move |c| {
+            super::analysis::run_warmup_analysis(input, c)
+        }) {
+            Ok(job) => {
+                warmup.running = Some(super::state::JobProgress {
+                    stage: "starting".into(),
+                    fraction: Some(0.0),
+                });
+                warmup.analysis_error = None;
+                self.warmup_job = Some(job);
+            }
+            Err(error) => warmup.analysis_error = Some(format!("cannot start: {error}")),
+        }
+    }
+
+    fn sign_off_warmup(&mut self) {
+        let operator = self.settings.forms.checklist_operator.trim().to_string();
+        let view = vm::warmup::build(&self.state);
+        let warmup = &mut self.state.warmup;
+        if operator.is_empty() {
+            warmup.notice = Some("enter your name to sign the checklist off".into());
+            return;
+        }
+        if let Some(reason) = view.sign_off_blocked {
+            warmup.notice = Some(reason);
+            return;
+        }
+        let report = vm::warmup::WarmupReport::new(
+            &view,
+            &self.state,
+            &operator,
+            crate::compensation::audit::utc_now(),
+        );
+        match self
+            .session
+            .send(SessionCommand::SaveWarmupReport(Box::new(report)))
+        {
+            Ok(()) => {
+                self.state.warmup.saving = true;
+                self.state.warmup.notice = None;
+            }
+            Err(error) => self.state.warmup.notice = Some(error.to_string()),
+        }
+    }
+
+    fn export_png(&mut self) {
+        if self.png_job.is_some() {
+            return;
+        }
+        let view = vm::trends::build(&self.state, &self.settings.trends, TREND_POINTS);
+        let height =
+            90 + 360 * view.plots.len() as u32 + if view.straightness.is_empty() { 0 } else { 300 };
+        let request = PngRequest {
+            view,
+            dark: self.settings.dark,
+            size: [1600, height],
+            path: PathBuf::from(self.settings.forms.png_path.trim()),
+        };
+        match Job::spawn("PNG export", move |c| {
+            super::export_png::run_png_export(request, c)
+        }) {
+            Ok(job) => {
+                self.export_note = Some("PNG export: drawing…".into());
+                self.png_job = Some(job);
+            }
+            Err(error) => self.export_note = Some(format!("cannot start the export: {error}")),
+        }
+    }
+
+    fn use_proposal(&mut self, id: &str) {
+        let proposals = vm::compensation::estimate_proposals(&self.state);
+        let comp = &mut self.state.compensation;
+        let Some(proposal) = proposals.into_iter().find(|p| p.id.to_string() == id) else {
+            comp.notice = Some(format!("no proposal for {id} any more"));
+            return;
+        };
+        let limit = comp.limits.of(proposal.id.kind()).absolute_um;
+        if proposal.value_um.abs() > limit {
+            comp.notice = Some(format!(
+                "{id} = {:.1} µm is beyond its limit of ±{limit} µm",
+                proposal.value_um
+            ));
+            return;
+        }
+        comp.notice = None;
+        comp.draft_changes.set(proposal.id, proposal.value_um);
+        let forms = &mut self.settings.forms;
+        if forms.why.trim().is_empty() {
+            forms.why = "compensation from the live estimates".into();
+        }
+        let evidence = format!("{id}: {}", proposal.basis);
+        if !forms.evidence.contains(&evidence) {
+            if !forms.evidence.trim().is_empty() {
+                forms.evidence.push_str("; ");
+            }
+            forms.evidence.push_str(&evidence);
+        }
+    }
+
     /// Draws the whole window.
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let mut commands = Vec::new();
@@ -314,6 +614,18 @@ impl HmiApp {
                 let view = vm::overview::build(&self.state);
                 egui::CentralPanel::default()
                     .show(ui, |ui| panels::overview::overview_ui(ui, &view));
+            }
+            Tab::Warmup => {
+                let view = vm::warmup::build(&self.state);
+                egui::CentralPanel::default().show(ui, |ui| {
+                    panels::warmup::warmup_ui(ui, &view, forms, &mut commands);
+                });
+            }
+            Tab::DepthOfCut => {
+                let view = vm::depth::build(&self.state);
+                egui::CentralPanel::default().show(ui, |ui| {
+                    panels::depth::depth_ui(ui, &view, forms, &mut commands);
+                });
             }
             Tab::Trends => {
                 let view = vm::trends::build(&self.state, &self.settings.trends, TREND_POINTS);
@@ -388,6 +700,35 @@ impl HmiApp {
                     Err(error) => format!("export failed: {error}"),
                 });
             }
+            UiCommand::ExportTrendsPng => self.export_png(),
+            UiCommand::RestartWarmup => {
+                let warmup = &mut self.state.warmup;
+                warmup.started_at_s = self.state.latest.time_s();
+                warmup.analysis = None;
+                warmup.analysis_error = None;
+                warmup.signed = None;
+                warmup.notice = None;
+            }
+            UiCommand::AnalyseWarmup => self.start_warmup_analysis(),
+            UiCommand::SaveBaseline => {
+                let fingerprint = self
+                    .state
+                    .warmup
+                    .analysis
+                    .as_ref()
+                    .and_then(|a| a.fingerprint.as_ref().ok())
+                    .cloned();
+                if let Some(fingerprint) = fingerprint {
+                    self.send(SessionCommand::SaveBaseline(Box::new(fingerprint)));
+                }
+            }
+            UiCommand::ToolMeasured => self.send(SessionCommand::ResetToolCalibration),
+            UiCommand::SignOffWarmup => self.sign_off_warmup(),
+            UiCommand::ComputeDepth => {
+                self.state.depth.error = None;
+                self.start_depth_of_cut();
+            }
+            UiCommand::UseProposal(id) => self.use_proposal(&id),
             UiCommand::AddChange => self.add_change(),
             UiCommand::RemoveChange(id) => {
                 let mut kept = CompensationValues::new();
@@ -571,6 +912,30 @@ impl HmiApp {
             }
         }
     }
+}
+
+/// Takes a job's waiting messages: progress goes into `running`; when the job ends it is
+/// dropped and its result (or why it stopped) returned.
+fn poll_job<T: Send + 'static>(
+    job: &mut Option<Job<T>>,
+    running: &mut Option<super::state::JobProgress>,
+) -> Option<Result<T, String>> {
+    let current = job.as_ref()?;
+    while let Some(message) = current.try_next() {
+        let end = match message {
+            JobMessage::Progress(progress) => {
+                *running = Some(progress);
+                continue;
+            }
+            JobMessage::Done(value) => Ok(value),
+            JobMessage::Failed(reason) => Err(reason),
+            JobMessage::Cancelled => Err("cancelled".to_string()),
+        };
+        *running = None;
+        *job = None;
+        return Some(end);
+    }
+    None
 }
 
 impl eframe::App for HmiApp {

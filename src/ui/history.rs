@@ -304,6 +304,17 @@ impl Window {
     }
 }
 
+/// What [`History::raw_since`] returns.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RawSamples {
+    /// Sample times, s.
+    pub time_s: Vec<f64>,
+    /// One column per requested channel, in request order.
+    pub values: Vec<Vec<f64>>,
+    /// False when older full-rate samples from the requested start were already let go.
+    pub complete: bool,
+}
+
 /// The history of every channel of a link (time excluded: it is the axis).
 #[derive(Debug, Clone)]
 pub struct History {
@@ -373,6 +384,44 @@ impl History {
             .filter(|l| l.len() > 0)
             .map(|l| l.t_first.get(0))
             .reduce(f64::min)
+    }
+
+    /// Time of the oldest sample still kept at full rate, if any.
+    pub fn oldest_raw_time_s(&self) -> Option<f64> {
+        let raw = &self.levels[0];
+        (raw.len() > 0).then(|| raw.t_first.get(0))
+    }
+
+    /// The full-rate samples of `channels` (indices) from `t0` on, oldest first, as `f64`.
+    ///
+    /// Analyses that need every sample (friction fingerprint, backlash, depth of cut) take
+    /// their input from here: copying only the few columns they use keeps this cheap enough
+    /// for the UI thread (four columns of ten minutes at 1 kHz is under ten megabytes), and
+    /// the analysis itself then runs on a job thread. Samples older than the raw ring are gone
+    /// from memory (they are in the recording on disk); [`RawSamples::complete`] says whether
+    /// the ring still reached back to `t0`.
+    pub fn raw_since(&self, channels: &[usize], t0: f64) -> RawSamples {
+        let raw = &self.levels[0];
+        let start = raw.first_ending_at_or_after(t0);
+        let n = raw.len();
+        let time_s: Vec<f64> = (start..n).map(|i| raw.t_first.get(i)).collect();
+        let values = channels
+            .iter()
+            .map(|&c| {
+                (start..n)
+                    .map(|i| f64::from(raw.mean[c].get(i)))
+                    .collect::<Vec<f64>>()
+            })
+            .collect();
+        let complete = match self.oldest_raw_time_s() {
+            Some(oldest) => oldest <= t0 || self.oldest_time_s() == Some(oldest),
+            None => true,
+        };
+        RawSamples {
+            time_s,
+            values,
+            complete,
+        }
     }
 
     /// The configuration.
@@ -654,6 +703,28 @@ mod tests {
         assert_eq!(w.time_s[0], 950.0);
         assert_eq!(w.series[0].mean[0], 950.0);
         assert_eq!(w.series[1].mean[49], -999.0);
+    }
+
+    #[test]
+    fn raw_samples_come_at_full_rate_and_say_when_older_ones_are_gone() {
+        let mut h = History::new(vec!["a".into(), "b".into()], small());
+        for i in 0..60 {
+            h.push(i as f64, &[i as f64, 2.0 * i as f64]);
+        }
+        let raw = h.raw_since(&[1], 10.0);
+        assert!(raw.complete);
+        assert_eq!(raw.time_s.len(), 50);
+        assert_eq!(raw.values[0][0], 20.0);
+        // The raw ring keeps 100 samples: from 1000 on, sample 0 is only in the buckets.
+        for i in 60..1000 {
+            h.push(i as f64, &[i as f64, 2.0 * i as f64]);
+        }
+        let raw = h.raw_since(&[0], 0.0);
+        assert!(!raw.complete);
+        assert_eq!(raw.time_s.len(), 100);
+        assert_eq!(raw.time_s[0], 900.0);
+        assert_eq!(h.oldest_raw_time_s(), Some(900.0));
+        assert!(h.raw_since(&[0], 950.0).complete);
     }
 
     #[test]

@@ -10,13 +10,18 @@
 //! - [`history`]: the in-memory decimation pyramid behind the Trends panel.
 //! - [`jobs`]: long work (fitting a model from a big database) on its own thread with progress
 //!   and cancel.
+//! - [`analysis`]: the warm-up checklist's friction fingerprint and backlash analyses and the
+//!   depth-of-cut recommendation, run as jobs on full-rate samples copied from the history.
+//! - [`export_png`]: the Trends plots drawn into a PNG without a window or GPU.
 //!
 //! With a calibrated machine profile the session runs the [`crate::estimators`] pipeline on
 //! every frame; its outputs (`est.*` columns: motor flange, bearing and nut temperatures,
 //! torque split, straightness per node and its ISO 1101 zone, spindle elongation) join the
 //! history, and the Overview judges them against the profile's limits.
 
+pub mod analysis;
 pub mod app;
+pub mod export_png;
 pub mod history;
 pub mod jobs;
 pub mod panels;
@@ -43,19 +48,29 @@ pub enum UiError {
 /// Opens the HMI window on a new session and runs until the window is closed.
 pub fn run(config: SessionConfig, options: HmiOptions) -> Result<(), UiError> {
     let session = Session::start(config)?;
-    let size = options
-        .settings_path
-        .as_deref()
-        .map(Settings::load)
+    let saved = options.settings_path.as_deref().map(Settings::load);
+    let size = saved
+        .as_ref()
         .and_then(|s| s.window_size)
         .filter(|[w, h]| *w >= 400.0 && *h >= 300.0)
         .unwrap_or([1280.0, 820.0]);
+    let mut viewport = egui::ViewportBuilder::default()
+        .with_title("servosight")
+        .with_app_id("servosight")
+        .with_inner_size(size)
+        .with_min_inner_size([640.0, 420.0]);
+    // A position far off any plausible desktop (a monitor since unplugged) is not restored:
+    // the window manager places the window instead of it opening out of sight.
+    if let Some([x, y]) = saved.and_then(|s| s.window_pos).filter(|[x, y]| {
+        x.is_finite()
+            && y.is_finite()
+            && (-100.0..8000.0).contains(x)
+            && (-100.0..8000.0).contains(y)
+    }) {
+        viewport = viewport.with_position([x, y]);
+    }
     let native = eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default()
-            .with_title("servosight")
-            .with_app_id("servosight")
-            .with_inner_size(size)
-            .with_min_inner_size([640.0, 420.0]),
+        viewport,
         ..Default::default()
     };
     eframe::run_native(

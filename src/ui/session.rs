@@ -16,17 +16,20 @@ use tokio::sync::mpsc;
 
 use super::state::{
     Event, EventKind, LinkSnapshot, PushResult, PushedValue, RecorderSnapshot, RecorderState,
-    Severity,
+    SavedReport, Severity,
 };
+use super::vm::warmup::WarmupReport;
 use crate::compensation::{
     self, AuditEntry, AuditLog, CompensationLimits, CompensationValues, Credentials, Request, Role,
 };
 use crate::estimators::EstimatorPipeline;
+use crate::estimators::fingerprint::FrictionFingerprint;
 use crate::link::{
     ConnectionState, ControllerLink, LinkError, ModbusConfig, Recorder, RecorderConfig,
     ReplayOptions, ReplaySpeed,
 };
 use crate::profile::MachineProfile;
+use crate::signal::AxisId;
 use crate::signal::Schema;
 use crate::sim::TwinConfig;
 
@@ -69,6 +72,17 @@ pub struct SessionConfig {
     /// The calibrated machine profile: its estimators run on every frame and their outputs
     /// (`est.*` columns) follow the link's columns. `None` shows the servo signals only.
     pub profile: Option<MachineProfile>,
+    /// Where warm-up reports (`warmup/`) and friction-fingerprint baselines (`baselines/`)
+    /// are kept.
+    pub data_dir: PathBuf,
+}
+
+/// The file a feed axis's healthy-machine friction fingerprint is kept in (the same JSON as
+/// `servosight fingerprint --save-baseline` writes, so either can make it).
+pub fn baseline_path(data_dir: &std::path::Path, axis: AxisId) -> PathBuf {
+    data_dir
+        .join("baselines")
+        .join(format!("{axis}-fingerprint.json"))
 }
 
 /// Why a session could not start.
@@ -109,6 +123,12 @@ pub enum SessionCommand {
     },
     /// Switch the recorder on (new file) or off.
     SetRecording(bool),
+    /// The operator measured the tool: spindle elongation counts from zero again.
+    ResetToolCalibration,
+    /// Keep this fingerprint as its axis's healthy-machine baseline.
+    SaveBaseline(Box<FrictionFingerprint>),
+    /// Write the signed-off warm-up report (JSON and text) into the data directory.
+    SaveWarmupReport(Box<WarmupReport>),
 }
 
 /// Frames the session forwards to the UI in one message.
@@ -148,12 +168,22 @@ pub enum SessionUpdate {
     PushFinished(PushResult),
     /// Something worth an entry in the event list.
     Event(Event),
+    /// The friction-fingerprint baselines per feed axis (`None`: none saved yet).
+    Baselines(Vec<(AxisId, Result<Option<FrictionFingerprint>, String>)>),
+    /// Spindle elongation counts from zero from this machine time on.
+    ToolCalibrationReset {
+        /// Machine time of the newest frame when the reset took effect.
+        machine_time_s: Option<f64>,
+    },
+    /// The warm-up report was written (or why not).
+    WarmupReportSaved(Result<SavedReport, String>),
 }
 
 /// The UI's handle on the session worker.
 pub struct Session {
     schema: Schema,
     source: String,
+    profile: Option<MachineProfile>,
     commands: mpsc::Sender<SessionCommand>,
     updates: mpsc::Receiver<SessionUpdate>,
     thread: Option<std::thread::JoinHandle<()>>,
@@ -216,6 +246,15 @@ impl Session {
             compensation_read_once: false,
             pipeline,
             estimates: Vec::new(),
+            data_dir: config.data_dir.clone(),
+            feed_axes: config
+                .profile
+                .iter()
+                .flat_map(|p| p.axes.iter())
+                .filter(|(_, a)| a.kind == crate::profile::AxisKind::Feed)
+                .map(|(id, _)| *id)
+                .collect(),
+            last_time_s: None,
         };
         if let Some(error) = pipeline_error {
             worker.event(EventKind::Condition, Severity::Warning, error);
@@ -227,6 +266,7 @@ impl Session {
         Ok(Session {
             schema,
             source,
+            profile: config.profile,
             commands: command_tx,
             updates: update_rx,
             thread: Some(thread),
@@ -241,6 +281,11 @@ impl Session {
     /// What the link reads from.
     pub fn source(&self) -> &str {
         &self.source
+    }
+
+    /// The machine profile the session's estimators run with.
+    pub fn profile(&self) -> Option<&MachineProfile> {
+        self.profile.as_ref()
     }
 
     /// Queues a command; never waits.
@@ -296,6 +341,12 @@ struct Worker {
     pipeline: Option<EstimatorPipeline>,
     /// Scratch row of estimator outputs.
     estimates: Vec<f64>,
+    /// Reports and baselines live here.
+    data_dir: PathBuf,
+    /// The profile's feed axes (each may have a fingerprint baseline).
+    feed_axes: Vec<AxisId>,
+    /// Machine time of the newest frame.
+    last_time_s: Option<f64>,
 }
 
 impl Worker {
@@ -309,6 +360,7 @@ impl Worker {
         }
         self.open_audit();
         self.send_users();
+        self.send_baselines();
         let mut source_open = true;
         let mut next_tick = tokio::time::Instant::now();
         loop {
@@ -378,6 +430,9 @@ impl Worker {
             }
         }
         let mut rows: Vec<Vec<f64>> = frames.into_iter().map(|f| f.row).collect();
+        if let Some(t) = rows.last().and_then(|r| r.first()) {
+            self.last_time_s = Some(*t);
+        }
         if let Some(pipeline) = self.pipeline.as_mut() {
             for row in &mut rows {
                 pipeline.update(row);
@@ -627,7 +682,99 @@ impl Worker {
                 self.send_compensation();
                 self.send_audit();
             }
+            SessionCommand::ResetToolCalibration => {
+                if let Some(pipeline) = self.pipeline.as_mut() {
+                    pipeline.reset_tool_calibration();
+                    self.send(SessionUpdate::ToolCalibrationReset {
+                        machine_time_s: self.last_time_s,
+                    });
+                    self.event(
+                        EventKind::Condition,
+                        Severity::Normal,
+                        format!(
+                            "tool measured: spindle elongation counts from zero at {} s",
+                            crate::ui::vm::number(self.last_time_s, 1)
+                        ),
+                    );
+                } else {
+                    self.event(
+                        EventKind::Condition,
+                        Severity::Warning,
+                        "no estimators run, so there is no elongation to reset",
+                    );
+                }
+            }
+            SessionCommand::SaveBaseline(fingerprint) => {
+                let path = baseline_path(&self.data_dir, fingerprint.axis);
+                let written = path
+                    .parent()
+                    .map_or(Ok(()), std::fs::create_dir_all)
+                    .and_then(|()| {
+                        let text = serde_json::to_string_pretty(&*fingerprint)
+                            .map_err(std::io::Error::other)?;
+                        std::fs::write(&path, text + "\n")
+                    });
+                match written {
+                    Ok(()) => self.event(
+                        EventKind::Condition,
+                        Severity::Normal,
+                        format!(
+                            "{} friction fingerprint saved as the baseline {}",
+                            fingerprint.axis,
+                            path.display()
+                        ),
+                    ),
+                    Err(error) => self.event(
+                        EventKind::Condition,
+                        Severity::Fault,
+                        format!("cannot save the baseline {}: {error}", path.display()),
+                    ),
+                }
+                self.send_baselines();
+            }
+            SessionCommand::SaveWarmupReport(report) => {
+                let saved = save_warmup_report(&self.data_dir, &report);
+                match &saved {
+                    Ok(s) => self.event(
+                        EventKind::Condition,
+                        match report.verdict {
+                            crate::ui::vm::warmup::StepStatus::Pass => Severity::Normal,
+                            crate::ui::vm::warmup::StepStatus::Fail => Severity::Fault,
+                            _ => Severity::Warning,
+                        },
+                        format!(
+                            "warm-up checklist signed off by {}: {}; report {}",
+                            report.signed_off_by, report.verdict_text, s.json_path
+                        ),
+                    ),
+                    Err(error) => self.event(
+                        EventKind::Condition,
+                        Severity::Fault,
+                        format!("the warm-up report was not saved: {error}"),
+                    ),
+                }
+                self.send(SessionUpdate::WarmupReportSaved(saved));
+            }
         }
+    }
+
+    fn send_baselines(&self) {
+        let baselines = self
+            .feed_axes
+            .iter()
+            .map(|&axis| {
+                let path = baseline_path(&self.data_dir, axis);
+                let loaded = match std::fs::read_to_string(&path) {
+                    Ok(text) => serde_json::from_str::<FrictionFingerprint>(&text)
+                        .map(Some)
+                        .map_err(|e| format!("{}: {e}", path.display())),
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+                    Err(e) => Err(format!("{}: {e}", path.display())),
+                };
+                (axis, loaded)
+            })
+            .collect();
+        self.send(SessionUpdate::Baselines(baselines));
     }
 
     fn approve_and_apply(&mut self, request: Request, approver: &str, password: &str) {
@@ -751,4 +898,38 @@ impl Worker {
         );
         self.send(SessionUpdate::PushFinished(result));
     }
+}
+
+/// Writes a signed-off warm-up report as `warmup/warmup-<time>.json` and `.txt` in the data
+/// directory; an existing file is never overwritten.
+fn save_warmup_report(
+    data_dir: &std::path::Path,
+    report: &WarmupReport,
+) -> Result<SavedReport, String> {
+    let dir = data_dir.join("warmup");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let stamp: String = report
+        .signed_utc
+        .chars()
+        .map(|c| if c == ':' || c == '.' { '-' } else { c })
+        .collect();
+    let json_path = dir.join(format!("warmup-{stamp}.json"));
+    let text_path = dir.join(format!("warmup-{stamp}.txt"));
+    let json = serde_json::to_string_pretty(report).map_err(|e| e.to_string())? + "\n";
+    for (path, text) in [(&json_path, json), (&text_path, report.to_text())] {
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        std::io::Write::write_all(&mut file, text.as_bytes())
+            .and_then(|()| file.sync_all())
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(SavedReport {
+        json_path: json_path.display().to_string(),
+        text_path: text_path.display().to_string(),
+        operator: report.signed_off_by.clone(),
+        time_utc: report.signed_utc.clone(),
+    })
 }

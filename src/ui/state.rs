@@ -426,6 +426,60 @@ pub struct ModelLabState {
     pub error: Option<String>,
 }
 
+/// A warm-up report the operator signed off, as saved.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SavedReport {
+    /// The JSON report.
+    pub json_path: String,
+    /// The same report as readable text.
+    pub text_path: String,
+    /// Who signed it off.
+    pub operator: String,
+    /// When, UTC.
+    pub time_utc: String,
+}
+
+/// The warm-up checklist's state (the steps themselves are judged in
+/// [`super::vm::warmup`] from this and the live values).
+#[derive(Debug, Clone, Default)]
+pub struct WarmupState {
+    /// Machine time from which the analyses take their samples (the checklist's start).
+    pub started_at_s: Option<f64>,
+    /// Progress of the running analysis.
+    pub running: Option<JobProgress>,
+    /// The last analysis of the warm-up moves.
+    pub analysis: Option<super::analysis::WarmupAnalysis>,
+    /// Why the last analysis could not run.
+    pub analysis_error: Option<String>,
+    /// Healthy-machine fingerprints per feed axis, from the data directory.
+    pub baselines:
+        std::collections::BTreeMap<AxisId, crate::estimators::fingerprint::FrictionFingerprint>,
+    /// A problem reading or saving a baseline.
+    pub baseline_note: Option<String>,
+    /// Machine time at which the spindle elongation was last counted from zero (the operator
+    /// measured the tool).
+    pub tool_reset_at_s: Option<f64>,
+    /// The report, once signed off and saved.
+    pub signed: Option<SavedReport>,
+    /// Sign-off sent to the session, waiting for the file to be written.
+    pub saving: bool,
+    /// Why the last sign-off could not be saved, or what is missing for it.
+    pub notice: Option<String>,
+}
+
+/// The depth-of-cut panel's state.
+#[derive(Debug, Clone, Default)]
+pub struct DepthState {
+    /// Progress of the running recommendation.
+    pub running: Option<JobProgress>,
+    /// The last recommendation (or why there is none yet).
+    pub outcome: Option<super::analysis::DepthOutcome>,
+    /// Why the last recommendation failed.
+    pub error: Option<String>,
+    /// Machine time of the newest sample the last recommendation saw.
+    pub computed_at_s: Option<f64>,
+}
+
 /// Everything the panels show, in one place. The session's updates and the operator's
 /// commands change it; the view models read it.
 #[derive(Debug, Clone)]
@@ -455,6 +509,12 @@ pub struct HmiState {
     pub ingest_latency_ms: Option<f64>,
     /// Each axis's condition as last judged, to log changes as events.
     pub conditions: std::collections::BTreeMap<AxisId, Severity>,
+    /// The machine profile the estimators run with (ratings, limits, warm-up settings).
+    pub profile: Option<crate::profile::MachineProfile>,
+    /// The warm-up checklist.
+    pub warmup: WarmupState,
+    /// The depth-of-cut recommendation.
+    pub depth: DepthState,
 }
 
 impl HmiState {
@@ -484,6 +544,9 @@ impl HmiState {
             frames_not_shown: 0,
             ingest_latency_ms: None,
             conditions: Default::default(),
+            profile: None,
+            warmup: WarmupState::default(),
+            depth: DepthState::default(),
         }
     }
 
@@ -543,6 +606,36 @@ impl HmiState {
                 self.compensation.flow = PushFlow::Finished(result);
             }
             SessionUpdate::Event(event) => self.events.push(event),
+            SessionUpdate::Baselines(baselines) => {
+                let mut notes = Vec::new();
+                for (axis, baseline) in baselines {
+                    match baseline {
+                        Ok(Some(fingerprint)) => {
+                            self.warmup.baselines.insert(axis, fingerprint);
+                        }
+                        Ok(None) => {
+                            self.warmup.baselines.remove(&axis);
+                        }
+                        Err(error) => notes.push(error),
+                    }
+                }
+                self.warmup.baseline_note = (!notes.is_empty()).then(|| notes.join("; "));
+            }
+            SessionUpdate::ToolCalibrationReset { machine_time_s } => {
+                self.warmup.tool_reset_at_s = machine_time_s;
+            }
+            SessionUpdate::WarmupReportSaved(result) => {
+                self.warmup.saving = false;
+                match result {
+                    Ok(saved) => {
+                        self.warmup.notice = None;
+                        self.warmup.signed = Some(saved);
+                    }
+                    Err(error) => {
+                        self.warmup.notice = Some(format!("the report was not saved: {error}"))
+                    }
+                }
+            }
         }
     }
 }

@@ -53,6 +53,48 @@ pub fn compensation_ui(
         if let Some(note) = &view.controller_note {
             ui.colored_label(severity_color(Severity::Warning), note);
         }
+        if !view.proposals.is_empty() {
+            ui.label(egui::RichText::new("Proposed from the estimates").strong());
+            egui::Grid::new("estimate proposals")
+                .striped(true)
+                .num_columns(6)
+                .spacing([10.0, 4.0])
+                .show(ui, |ui| {
+                    for header in [
+                        "value",
+                        "applied now [µm]",
+                        "proposed [µm]",
+                        "change [µm]",
+                        "from",
+                        "",
+                    ] {
+                        ui.label(egui::RichText::new(header).strong());
+                    }
+                    ui.end_row();
+                    for p in &view.proposals {
+                        ui.monospace(&p.id);
+                        ui.monospace(&p.current_um);
+                        ui.label(egui::RichText::new(&p.proposed_um).monospace().strong());
+                        ui.monospace(&p.change_um);
+                        ui.label(&p.basis);
+                        match (&p.blocked, p.in_draft) {
+                            (Some(reason), _) => {
+                                ui.colored_label(severity_color(Severity::Fault), reason);
+                            }
+                            (None, true) => {
+                                ui.weak("in the proposal");
+                            }
+                            (None, false) => {
+                                if ui.button(format!("Use {}", p.id)).clicked() {
+                                    commands.push(UiCommand::UseProposal(p.id.clone()));
+                                }
+                            }
+                        }
+                        ui.end_row();
+                    }
+                });
+            ui.weak("A proposal is written only after a request and the approver's credential.");
+        }
         if !view.values.is_empty() {
             egui::CollapsingHeader::new(format!("{} values", view.values.len()))
                 .default_open(true)

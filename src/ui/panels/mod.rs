@@ -2,11 +2,13 @@
 //! [`UiCommand`]s; none of them changes shared state. Text being typed lives in [`Forms`].
 
 pub mod compensation;
+pub mod depth;
 pub mod events;
 pub mod model_lab;
 pub mod overview;
 pub mod status;
 pub mod trends;
+pub mod warmup;
 
 use eframe::egui;
 use serde::{Deserialize, Serialize};
@@ -19,8 +21,12 @@ use super::vm::trends::WindowPreset;
 pub enum Tab {
     /// Axis cards.
     Overview,
+    /// The shift-start warm-up checklist.
+    Warmup,
     /// Time series.
     Trends,
+    /// The maximum rough-cut depth.
+    DepthOfCut,
     /// Controller values, approval, audit.
     Compensation,
     /// Fitting models.
@@ -31,9 +37,11 @@ pub enum Tab {
 
 impl Tab {
     /// Every tab, in the order of the tab bar.
-    pub const ALL: [Tab; 5] = [
+    pub const ALL: [Tab; 7] = [
         Tab::Overview,
+        Tab::Warmup,
         Tab::Trends,
+        Tab::DepthOfCut,
         Tab::Compensation,
         Tab::ModelLab,
         Tab::Events,
@@ -43,7 +51,9 @@ impl Tab {
     pub fn label(self) -> &'static str {
         match self {
             Tab::Overview => "Overview",
+            Tab::Warmup => "Warm-up",
             Tab::Trends => "Trends",
+            Tab::DepthOfCut => "Depth of cut",
             Tab::Compensation => "Compensation",
             Tab::ModelLab => "Model lab",
             Tab::Events => "Events",
@@ -68,6 +78,22 @@ pub enum UiCommand {
     SetView(f64, f64),
     /// Write what the Trends panel shows to the export path.
     ExportTrends,
+    /// Draw what the Trends panel shows into the PNG file.
+    ExportTrendsPng,
+    /// Start the warm-up checklist afresh: the analyses take samples from now on.
+    RestartWarmup,
+    /// Analyse the warm-up moves (friction fingerprint, backlash) since the checklist started.
+    AnalyseWarmup,
+    /// Keep the analysed fingerprint as the axis's healthy baseline.
+    SaveBaseline,
+    /// The operator measured the tool: count spindle elongation from zero.
+    ToolMeasured,
+    /// The operator signs the checklist off (name in the form); the report is saved.
+    SignOffWarmup,
+    /// Compute the depth-of-cut recommendation from the session's cuts.
+    ComputeDepth,
+    /// Put an estimate-based proposal (by compensation id) into the draft.
+    UseProposal(String),
     /// Add the change in the proposal form to the draft.
     AddChange,
     /// Remove a change from the draft.
@@ -96,8 +122,10 @@ pub enum UiCommand {
     SetProblemsOnly(bool),
 }
 
-/// Text the operator is typing (UI-local widget state, never shared).
+/// Text the operator is typing (UI-local widget state, never shared). Fields missing from a
+/// settings file written by an older version take their defaults.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Forms {
     /// The compensation id of the change being added.
     pub change_id: String,
@@ -117,6 +145,12 @@ pub struct Forms {
     pub password: String,
     /// Where Trends exports go.
     pub export_path: String,
+    /// Where the Trends PNG export goes.
+    pub png_path: String,
+    /// Who signs the warm-up checklist off.
+    pub checklist_operator: String,
+    /// Diameter being turned for the depth-of-cut recommendation, mm.
+    pub workpiece_diameter_mm: String,
     /// The Model lab's database.
     pub fit_data: String,
     /// The Model lab's target column.

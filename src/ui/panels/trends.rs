@@ -70,81 +70,141 @@ pub fn trends_ui(
             if ui.button("Export CSV").clicked() {
                 commands.push(UiCommand::ExportTrends);
             }
+            labelled_text(ui, "PNG file", &mut forms.png_path, 260.0);
+            if ui.button("Export PNG").clicked() {
+                commands.push(UiCommand::ExportTrendsPng);
+            }
             if let Some(note) = export_note {
                 ui.label(note);
             }
         });
         ui.weak("Drag to pan, scroll or pinch to zoom, double-click to reset.");
-        if view.plots.is_empty() {
+        if view.plots.is_empty() && view.straightness.is_empty() {
             ui.add_space(20.0);
             ui.label("Choose channels on the left to draw them.");
             return;
         }
-        let plot_count = view.plots.len() as f32;
-        let spacing = ui.spacing().item_spacing.y;
-        let height = ((ui.available_height() - spacing * plot_count) / plot_count).max(120.0);
-        let mut colour = 0usize;
         egui::ScrollArea::vertical().show(ui, |ui| {
-            for plot_view in &view.plots {
-                let first_colour = colour;
-                colour += plot_view.series.len();
-                let response = Plot::new(("trend plot", &plot_view.unit))
-                    .height(height)
-                    .legend(
-                        // The band shares its series' name; the legend shows the line's colour.
-                        Legend::default().color_conflict_handling(ColorConflictHandling::PickFirst),
-                    )
-                    .link_axis(egui::Id::unique("trend time axis"), [true, false])
-                    .link_cursor(egui::Id::unique("trend time axis"), [true, false])
-                    .x_axis_label("machine time [s]")
-                    .y_axis_label(if plot_view.unit.is_empty() {
-                        "value".to_string()
-                    } else {
-                        format!("[{}]", plot_view.unit)
-                    })
-                    .show(ui, |plot_ui| {
-                        if view.follow_live {
-                            plot_ui.set_plot_bounds_x(view.t0..=view.t1);
-                            plot_ui.set_auto_bounds([false, true]);
-                        }
-                        for (k, series) in plot_view.series.iter().enumerate() {
-                            let color = PALETTE[(first_colour + k) % PALETTE.len()];
-                            plot_ui.line(
-                                Line::new(
-                                    series.label.clone(),
-                                    PlotPoints::new(series.points.clone()),
-                                )
-                                .color(color)
-                                .width(1.5),
-                            );
-                            if let Some((min, max)) = &series.band {
-                                let faint = color.gamma_multiply(0.35);
-                                plot_ui.line(
-                                    Line::new(series.label.clone(), PlotPoints::new(min.clone()))
-                                        .color(faint)
-                                        .width(1.0),
-                                );
-                                plot_ui.line(
-                                    Line::new(series.label.clone(), PlotPoints::new(max.clone()))
-                                        .color(faint)
-                                        .width(1.0),
-                                );
-                            }
-                        }
-                    });
-                let interacted = response.response.dragged()
-                    || (response.response.hovered()
-                        && ui.input(|i| {
-                            i.smooth_scroll_delta != egui::Vec2::ZERO || i.zoom_delta() != 1.0
-                        }));
-                let bounds = response.transform.bounds();
-                let (t0, t1) = (bounds.min()[0], bounds.max()[0]);
-                let moved = (t0 - view.t0).abs() + (t1 - view.t1).abs()
-                    > 1e-9 * (view.t1 - view.t0).abs().max(1.0);
-                if (interacted || (!view.follow_live && moved)) && t1 > t0 {
-                    commands.push(UiCommand::SetView(t0, t1));
-                }
-            }
+            plots_ui(ui, view, false, Some(commands));
         });
     });
+}
+
+/// Draws the time plots (one per unit, x axes linked) and the straightness profiles; the
+/// screen and the PNG export both draw through here, so the PNG is what is shown. With
+/// `fixed_window` the time axes show exactly the view's window (the export); otherwise they
+/// follow live or keep the operator's zoom, and zooming or panning is reported in `commands`.
+pub fn plots_ui(
+    ui: &mut egui::Ui,
+    view: &TrendsView,
+    fixed_window: bool,
+    mut commands: Option<&mut Vec<UiCommand>>,
+) {
+    let straightness_height = if view.straightness.is_empty() {
+        0.0
+    } else {
+        240.0
+    };
+    let plot_count = view.plots.len().max(1) as f32;
+    let spacing = ui.spacing().item_spacing.y;
+    let height = ((ui.available_height() - straightness_height - spacing * plot_count)
+        / plot_count)
+        .max(120.0);
+    let mut colour = 0usize;
+    for plot_view in &view.plots {
+        let first_colour = colour;
+        colour += plot_view.series.len();
+        let response = Plot::new(("trend plot", &plot_view.unit))
+            .height(height)
+            .legend(
+                // The band shares its series' name; the legend shows the line's colour.
+                Legend::default().color_conflict_handling(ColorConflictHandling::PickFirst),
+            )
+            .link_axis(egui::Id::unique("trend time axis"), [true, false])
+            .link_cursor(egui::Id::unique("trend time axis"), [true, false])
+            .x_axis_label("machine time [s]")
+            .y_axis_label(if plot_view.unit.is_empty() {
+                "value".to_string()
+            } else {
+                format!("[{}]", plot_view.unit)
+            })
+            .show(ui, |plot_ui| {
+                if view.follow_live || fixed_window {
+                    plot_ui.set_plot_bounds_x(view.t0..=view.t1);
+                    plot_ui.set_auto_bounds([false, true]);
+                }
+                for (k, series) in plot_view.series.iter().enumerate() {
+                    let color = PALETTE[(first_colour + k) % PALETTE.len()];
+                    plot_ui.line(
+                        Line::new(series.label.clone(), PlotPoints::new(series.points.clone()))
+                            .color(color)
+                            .width(1.5),
+                    );
+                    if let Some((min, max)) = &series.band {
+                        let faint = color.gamma_multiply(0.35);
+                        plot_ui.line(
+                            Line::new(series.label.clone(), PlotPoints::new(min.clone()))
+                                .color(faint)
+                                .width(1.0),
+                        );
+                        plot_ui.line(
+                            Line::new(series.label.clone(), PlotPoints::new(max.clone()))
+                                .color(faint)
+                                .width(1.0),
+                        );
+                    }
+                }
+            });
+        if let Some(commands) = commands.as_deref_mut() {
+            let interacted = response.response.dragged()
+                || (response.response.hovered()
+                    && ui.input(|i| {
+                        i.smooth_scroll_delta != egui::Vec2::ZERO || i.zoom_delta() != 1.0
+                    }));
+            let bounds = response.transform.bounds();
+            let (t0, t1) = (bounds.min()[0], bounds.max()[0]);
+            let moved = (t0 - view.t0).abs() + (t1 - view.t1).abs()
+                > 1e-9 * (view.t1 - view.t0).abs().max(1.0);
+            if (interacted || (!view.follow_live && moved)) && t1 > t0 {
+                commands.push(UiCommand::SetView(t0, t1));
+            }
+        }
+    }
+    if view.straightness.is_empty() {
+        return;
+    }
+    ui.add_space(6.0);
+    let zones: Vec<String> = view
+        .straightness
+        .iter()
+        .map(|s| format!("{} {}: {}", s.axis, s.direction, s.zone))
+        .collect();
+    ui.label(
+        egui::RichText::new(format!(
+            "Straightness along the stroke (estimated, ISO 1101 minimum zone) — {}",
+            zones.join(", ")
+        ))
+        .strong(),
+    );
+    Plot::new("straightness profile")
+        .height(straightness_height - 30.0)
+        .legend(Legend::default())
+        .x_axis_label("position along the stroke [mm]")
+        .y_axis_label("deviation [µm]")
+        .show(ui, |plot_ui| {
+            for (k, s) in view.straightness.iter().enumerate() {
+                let name = format!("{} {} (zone {})", s.axis, s.direction, s.zone);
+                let color = PALETTE[(k + 3) % PALETTE.len()];
+                plot_ui.line(
+                    Line::new(name.clone(), PlotPoints::new(s.points.clone()))
+                        .color(color)
+                        .width(2.0),
+                );
+                plot_ui.points(
+                    egui_plot::Points::new(name, PlotPoints::new(s.points.clone()))
+                        .color(color)
+                        .radius(3.5),
+                );
+            }
+        });
 }

@@ -89,9 +89,97 @@ pub struct AuditRow {
     pub can_roll_back: bool,
 }
 
+/// A compensation value computed from the live estimates or the warm-up analysis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimateProposal {
+    /// The value.
+    pub id: CompensationId,
+    /// The proposed value, µm (rounded to 0.1 µm, the table's resolution on screen).
+    pub value_um: f64,
+    /// What it is computed from, in words (goes into the request's evidence).
+    pub basis: String,
+}
+
+/// Compensation values the estimates call for: the spindle's thermal offset from its
+/// estimated elongation, a feed axis's backlash from the warm-up backlash test. Only values
+/// the controller's table has are proposed. (Straightness tables are not proposed: the
+/// controller's node positions along the stroke are not known to the HMI.)
+pub fn estimate_proposals(state: &HmiState) -> Vec<EstimateProposal> {
+    let Some(table) = &state.compensation.controller else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    let round = |v: f64| (v * 10.0).round() / 10.0;
+    for axis in state.latest.axes() {
+        let column = format!("{}{axis}.elongation_um", super::ESTIMATE_PREFIX);
+        let id = CompensationId::ThermalOffset(axis);
+        if let Some(e) = state.latest.get(&column).filter(|v| v.is_finite())
+            && table.get(id).is_some()
+        {
+            out.push(EstimateProposal {
+                id,
+                value_um: round(e),
+                basis: format!(
+                    "estimated {axis} thermal elongation {e:.1} µm at machine time {} s (counted from the tool measurement at {} s)",
+                    number(state.latest.time_s(), 1),
+                    number(state.warmup.tool_reset_at_s, 1)
+                ),
+            });
+        }
+    }
+    if let Some(analysis) = &state.warmup.analysis
+        && let Ok(report) = &analysis.backlash
+    {
+        let id = CompensationId::Backlash(analysis.axis);
+        let min_confidence = state
+            .profile
+            .as_ref()
+            .map_or(0.1, |p| p.warmup.min_backlash_confidence);
+        if table.get(id).is_some() && report.confidence >= min_confidence {
+            let (low, high) = report
+                .by_speed
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), b| {
+                    (l.min(b.ci_low_um), h.max(b.ci_high_um))
+                });
+            out.push(EstimateProposal {
+                id,
+                value_um: round(report.backlash_um),
+                basis: format!(
+                    "warm-up backlash test: {:.1} µm (per-feed 95 % intervals {low:.1}–{high:.1} µm, confidence {:.2})",
+                    report.backlash_um, report.confidence
+                ),
+            });
+        }
+    }
+    out
+}
+
+/// A proposal as the panel shows it, beside the controller's value.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProposalRow {
+    /// `thermal_offset.S`.
+    pub id: String,
+    /// What the controller applies now, µm.
+    pub current_um: String,
+    /// The proposed value, µm.
+    pub proposed_um: String,
+    /// Proposed minus current, µm.
+    pub change_um: String,
+    /// What it is computed from.
+    pub basis: String,
+    /// Why it cannot be used (beyond the absolute limit).
+    pub blocked: Option<String>,
+    /// Already in the draft at this value.
+    pub in_draft: bool,
+}
+
 /// The Compensation panel.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CompensationView {
+    /// Values computed from the estimates, beside the controller's; using one puts it into
+    /// the draft (it is written only after a request and the approver's credential).
+    pub proposals: Vec<ProposalRow>,
     /// The controller's table with the proposal beside it.
     pub values: Vec<ValueRow>,
     /// Why the table is not shown (a replay has no controller, the line is down, …).
@@ -261,7 +349,26 @@ pub fn build(state: &HmiState) -> CompensationView {
             can_roll_back: first_applied.get(e.request_id.as_str()) == Some(&e.index),
         })
         .collect();
+    let proposals = estimate_proposals(state)
+        .into_iter()
+        .map(|p| {
+            let current = c.controller.as_ref().and_then(|t| t.get(p.id));
+            let limit = c.limits.of(p.id.kind()).absolute_um;
+            ProposalRow {
+                id: p.id.to_string(),
+                current_um: number(current, 1),
+                proposed_um: format!("{:.1}", p.value_um),
+                change_um: number(current.map(|v| p.value_um - v), 1),
+                basis: p.basis,
+                blocked: (p.value_um.abs() > limit).then(|| {
+                    format!("beyond the absolute limit ±{limit:.1} µm: check the machine first")
+                }),
+                in_draft: c.draft_changes.get(p.id) == Some(p.value_um),
+            }
+        })
+        .collect();
     CompensationView {
+        proposals,
         values,
         controller_note,
         ids: ids.iter().map(|id| id.to_string()).collect(),

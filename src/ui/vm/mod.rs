@@ -8,11 +8,13 @@
 //! [`HmiState`]: super::state::HmiState
 
 pub mod compensation;
+pub mod depth;
 pub mod events;
 pub mod model_lab;
 pub mod overview;
 pub mod status;
 pub mod trends;
+pub mod warmup;
 
 use crate::signal::channel::{CUT_DEPTH, Channel, Quantity};
 

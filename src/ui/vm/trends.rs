@@ -130,6 +130,20 @@ pub struct PlotView {
     pub series: Vec<SeriesView>,
 }
 
+/// The straightness of a feed axis along its stroke, in one direction, from the newest
+/// estimates.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StraightnessView {
+    /// "X".
+    pub axis: String,
+    /// "horizontal (H)" or "vertical (V)".
+    pub direction: String,
+    /// `[position along the stroke mm, deviation µm]` per node.
+    pub points: Points,
+    /// The ISO 1101 straightness (minimum zone) over the nodes, with unit.
+    pub zone: String,
+}
+
 /// The Trends panel.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TrendsView {
@@ -147,6 +161,50 @@ pub struct TrendsView {
     pub resolution: String,
     /// The plots.
     pub plots: Vec<PlotView>,
+    /// The estimated straightness profile along the stroke per feed axis and direction.
+    pub straightness: Vec<StraightnessView>,
+}
+
+/// The newest straightness profiles: for every feed axis of the profile whose per-node
+/// estimates the link carries, the deviation at each node against its position along the
+/// stroke, and the ISO 1101 minimum-zone value over them.
+pub fn straightness_profiles(state: &HmiState) -> Vec<StraightnessView> {
+    let Some(profile) = &state.profile else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (axis, a) in &profile.axes {
+        let Some(screw) = &a.screw else { continue };
+        for (hv, direction) in [("h", "horizontal (H)"), ("v", "vertical (V)")] {
+            let points: Points = screw
+                .node_positions_mm
+                .iter()
+                .enumerate()
+                .filter_map(|(k, x)| {
+                    let name = format!(
+                        "{}{axis}.straightness_{hv}_um#{}",
+                        super::ESTIMATE_PREFIX,
+                        k + 1
+                    );
+                    let d = state.latest.get(&name)?;
+                    d.is_finite().then_some([*x, d])
+                })
+                .collect();
+            if points.len() < 2 {
+                continue;
+            }
+            let xs: Vec<f64> = points.iter().map(|p| p[0]).collect();
+            let ds: Vec<f64> = points.iter().map(|p| p[1]).collect();
+            let zone = crate::estimators::streaming::minimum_zone_straightness(&xs, &ds);
+            out.push(StraightnessView {
+                axis: axis.to_string(),
+                direction: direction.to_string(),
+                points,
+                zone: format!("{} µm", super::number(Some(zone), 2)),
+            });
+        }
+    }
+    out
 }
 
 /// The axis of an estimator output column (`est.X.nut_temp_C` → X).
@@ -265,6 +323,7 @@ pub fn build(state: &HmiState, settings: &TrendsSettings, max_points: usize) -> 
         t1,
         resolution,
         plots,
+        straightness: straightness_profiles(state),
     }
 }
 
