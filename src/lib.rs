@@ -12,8 +12,11 @@
 //! - [`link`]: frame sources (replay, embedded twin, Modbus RTU controller), the register map,
 //!   the recorder, and the controller end of the map (`sim-controller`).
 //! - [`compensation`]: approved, bounded, verified and audited compensation writes.
+//! - [`discrepancy`]: sim-vs-real analysis: locate the mismatch, name the missing physics, model
+//!   it and show the fit improve out of sample.
 
 pub mod compensation;
+pub mod discrepancy;
 pub mod fit;
 pub mod link;
 pub mod signal;

@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod audit;
 mod compensate;
+mod discrepancy;
 mod fit;
 pub mod inspect;
 mod record;
@@ -41,6 +42,8 @@ enum Command {
     Compensate(compensate::Args),
     /// Check the compensation audit log.
     Audit(audit::Args),
+    /// Sim vs real: locate the mismatch, name the missing physics, fit it, show the improvement.
+    Discrepancy(discrepancy::Args),
     /// Serve a recording as a Modbus RTU controller speaking the register map.
     SimController(sim_controller::Args),
 }
@@ -56,6 +59,7 @@ pub fn run() -> ExitCode {
         Some(Command::Record(args)) => record::run(args),
         Some(Command::Compensate(args)) => compensate::run(args),
         Some(Command::Audit(args)) => audit::run(args),
+        Some(Command::Discrepancy(args)) => discrepancy::run(args),
         Some(Command::SimController(args)) => sim_controller::run(args),
         None => simulate::run_default_day(),
     };
