@@ -201,15 +201,50 @@ pub struct Family {
     pub refine: Option<Refine>,
     /// Builds the columns.
     pub build: Builder,
-    /// A driver whose steady-state gain (the sum of its columns' coefficients) has a sign the
-    /// physics fixes: `(driver, sign)`. Members fitting the other sign are not this physics and
-    /// are not offered.
-    pub sign: Option<(usize, f64)>,
+    /// A driver whose steady-state gain (the sum of its columns' coefficients) the physics
+    /// limits. Members fitting outside the limits are not this physics and are not offered.
+    pub sign: Option<GainLimit>,
     /// Heat paths: the last nonlinear parameter is the ratio of a second lag's time constant
     /// to the first (0: one lag), and every driver has one column per lag.
     pub lagged: bool,
     /// Axis the correction belongs to, for explanations.
     pub axis: Option<AxisId>,
+}
+
+/// Limits on one driver's steady-state gain: `min < gain ≤ max`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GainLimit {
+    /// The driver.
+    pub driver: usize,
+    /// Exclusive lower limit.
+    pub min: f64,
+    /// Inclusive upper limit.
+    pub max: f64,
+}
+
+impl GainLimit {
+    /// The gain must be positive.
+    pub fn positive(driver: usize) -> Self {
+        GainLimit {
+            driver,
+            min: 0.0,
+            max: f64::INFINITY,
+        }
+    }
+
+    /// The gain must be negative.
+    pub fn negative(driver: usize) -> Self {
+        GainLimit {
+            driver,
+            min: f64::NEG_INFINITY,
+            max: 0.0,
+        }
+    }
+
+    /// Whether `gain` is within the limits.
+    pub fn admits(&self, gain: f64) -> bool {
+        gain > self.min && gain <= self.max && !(self.max == 0.0 && gain == 0.0)
+    }
 }
 
 /// How the first nonlinear parameter may be refined.
@@ -353,8 +388,9 @@ impl Context {
         grid
     }
 
-    /// Delays worth trying, both signs: every sample up to ten, then growing by a quarter
-    /// (rounded to whole samples) up to a tenth of the recording, at most ten minutes.
+    /// Delays worth trying, both signs: every sample up to sixty (a delay that misses by a
+    /// sample smears a fast signal badly), then growing by a tenth (rounded to whole samples)
+    /// up to a tenth of the recording, at most ten minutes.
     fn delay_grid(&self) -> Vec<f64> {
         let high = (0.1 * self.duration_s).min(600.0);
         let mut grid = Vec::new();
@@ -362,10 +398,10 @@ impl Context {
         while samples * self.step_s <= high {
             grid.push(samples * self.step_s);
             grid.push(-samples * self.step_s);
-            samples = if samples < 10.0 {
+            samples = if samples < 60.0 {
                 samples + 1.0
             } else {
-                (samples * 1.25).round()
+                (samples * 1.1).round()
             };
         }
         grid
@@ -449,7 +485,7 @@ fn thermal_family(
     theta_names: Vec<&'static str>,
     grid: Vec<Vec<f64>>,
     drivers: Drivers,
-    sign: Option<(usize, f64)>,
+    sign: Option<GainLimit>,
     axis: Option<AxisId>,
 ) -> Family {
     Family {
@@ -547,7 +583,13 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 vec!["tau_s", "lag_ratio"],
                 thermal_grid(&taus, &[]),
                 Box::new(|ctx, _| vec![ctx.ambient_delta.clone().unwrap_or_default()]),
-                None,
+                // A part whose surroundings all follow the room ends up following it one to
+                // one: its steady-state gain to the room lies between 0 and 1.
+                temperature.then_some(GainLimit {
+                    driver: 0,
+                    min: 0.0,
+                    max: 1.05,
+                }),
                 None,
             )),
             None => untested.push((
@@ -566,7 +608,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     thermal_grid(&taus, &[]),
                     Box::new(|ctx, _| {
                         let c = ctx.coolant.clone().unwrap_or_default();
-                        let ce = c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect();
+                        let ce: Vec<f64> = c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect();
                         vec![c, ce]
                     }),
                     None,
@@ -613,15 +655,21 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     let Some(a) = ctx.axis(axis) else {
                         return vec![];
                     };
-                    vec![
-                        a.speed
-                            .iter()
-                            .zip(&ctx.excess)
-                            .map(|(n, e)| (n.abs() / 1000.0).powf(theta[1]) * e)
-                            .collect(),
-                    ]
+                    let spin: Vec<f64> = a
+                        .speed
+                        .iter()
+                        .map(|n| (n.abs() / 1000.0).powf(theta[1]))
+                        .collect();
+                    let cooling: Vec<f64> =
+                        spin.iter().zip(&ctx.excess).map(|(s, e)| s * e).collect();
+                    // The extra cooling lowers the very temperature it acts on: the second
+                    // driver is that feedback (the next term of the series), with its own
+                    // coefficient.
+                    let lowered = lp(ctx, &cooling, theta[0]);
+                    let feedback = spin.iter().zip(&lowered).map(|(s, l)| s * l).collect();
+                    vec![cooling, feedback]
                 }),
-                temperature.then_some((0, -1.0)),
+                temperature.then_some(GainLimit::negative(0)),
                 Some(axis),
             ));
             out.push(thermal_family(
@@ -638,7 +686,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         a.speed.iter().map(|n| (n / 1000.0).powi(2)).collect(),
                     ]
                 }),
-                temperature.then_some((0, 1.0)),
+                temperature.then_some(GainLimit::positive(0)),
                 Some(axis),
             ));
             match &axis_signals.current {
@@ -650,7 +698,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     ],
                     vec!["tau_s", "lag_ratio"],
                     thermal_grid(&taus, &[]),
-                    Box::new(move |ctx, _| {
+                    Box::new(move |ctx, theta| {
                         let Some(a) = ctx.axis(axis) else {
                             return vec![];
                         };
@@ -658,20 +706,28 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             return vec![];
                         };
                         // I²R with the winding's resistance rising with its temperature.
-                        vec![
-                            current
-                                .iter()
-                                .enumerate()
-                                .map(|(i, c)| {
-                                    let warm = a.stator.as_ref().map_or(1.0, |s| {
-                                        1.0 + COPPER_TEMPERATURE_COEFFICIENT * (s[i] - 20.0)
-                                    });
-                                    c * c * warm
-                                })
-                                .collect(),
-                        ]
+                        let heat: Vec<f64> = current
+                            .iter()
+                            .enumerate()
+                            .map(|(i, c)| {
+                                let warm = a.stator.as_ref().map_or(1.0, |s| {
+                                    1.0 + COPPER_TEMPERATURE_COEFFICIENT * (s[i] - 20.0)
+                                });
+                                c * c * warm
+                            })
+                            .collect();
+                        // The extra warmth leaves faster while the motor spins (forced
+                        // convection, ∝ n^0.8): the feedback term of the heat path.
+                        let warmed = lp(ctx, &heat, theta[0]);
+                        let shed = a
+                            .speed
+                            .iter()
+                            .zip(&warmed)
+                            .map(|(n, w)| (n.abs() / 1000.0).powf(0.8) * w)
+                            .collect();
+                        vec![heat, shed]
                     }),
-                    temperature.then_some((0, 1.0)),
+                    temperature.then_some(GainLimit::positive(0)),
                     Some(axis),
                 )),
                 None => untested.push((
@@ -720,7 +776,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             .collect();
                         vec![power, falling]
                     }),
-                    Some((1, -1.0)),
+                    Some(GainLimit::negative(1)),
                     Some(axis),
                 ));
             }
@@ -737,17 +793,16 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         let Some(position) = a.position.as_ref() else {
                             return vec![];
                         };
-                        // Heat deposited where the axis works along its stroke.
+                        // Heat deposited where the axis works along its stroke: towards one end
+                        // or the other (the first Legendre mode of the position).
                         let u = normalised_position(position);
-                        (1..=2)
-                            .map(|k| {
-                                a.speed
-                                    .iter()
-                                    .zip(&u)
-                                    .map(|(n, u)| n.abs() / 1000.0 * legendre(k, *u))
-                                    .collect()
-                            })
-                            .collect()
+                        vec![
+                            a.speed
+                                .iter()
+                                .zip(&u)
+                                .map(|(n, u)| n.abs() / 1000.0 * legendre(1, *u))
+                                .collect(),
+                        ]
                     }),
                     None,
                     Some(axis),
@@ -851,7 +906,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             .collect();
                         vec![drag, falling]
                     }),
-                    sign: Some((1, -1.0)),
+                    sign: Some(GainLimit::negative(1)),
                     axis: Some(axis),
                     lagged: false,
                 });

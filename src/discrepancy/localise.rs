@@ -1,17 +1,16 @@
 //! Localisation: where in time the simulation misses, against a noise floor estimated from the
 //! data, and the operating conditions there and where the simulation is right.
 //!
-//! The noise floor is the windowed mean square of the final out-of-sample residual — what is
-//! left once every significant correction is in — so its level and its autocorrelation both come
-//! from the data: with correlated noise the windowed mean square fluctuates more and the
-//! threshold rises with it. A region is a run of windows whose mismatch power (windowed mean
+//! The noise floor is the power of the final out-of-sample residual — what is left once every
+//! significant correction is in — so its level and its autocorrelation both come from the data:
+//! with correlated noise a window's mean power fluctuates more and the threshold rises with it. A region is a run of windows whose mismatch power (windowed mean
 //! square of the part of the real signal the calibrated simulation does not explain) clears that
 //! threshold. Power rather than mean is compared, so effects that flip sign within a window
 //! (direction-dependent friction) are found as well as slow offsets.
 
 use std::collections::BTreeMap;
 
-use super::series::{mean, median, moving_average, rms, robust_sigma};
+use super::series::{mean, moving_average, rms};
 use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, axis_column};
 
@@ -122,30 +121,47 @@ pub fn localise(
     } else {
         1.0
     };
-    let noise_power = moving_average(&noise.iter().map(|v| v * v).collect::<Vec<_>>(), window);
-    let typical = median(&noise_power);
-    let threshold = typical + 5.0 * robust_sigma(&noise_power);
-    let power = moving_average(&mismatch.iter().map(|v| v * v).collect::<Vec<_>>(), window);
+    // The noise floor's power and how fast it decorrelates, from the held-out residual.
+    let noise_power_series: Vec<f64> = noise.iter().map(|v| v * v).collect();
+    let typical = mean(&noise_power_series);
+    let spread = super::series::std_dev(&noise_power_series);
+    let correlation =
+        super::series::integrated_autocorrelation(&noise_power_series, (n / 4).max(2)).max(1.0);
+    let mismatch_power: Vec<f64> = mismatch.iter().map(|v| v * v).collect();
+    // Several scales: short windows find strong, brief mismatches; long ones find weak,
+    // persistent ones. A window's mean noise power has a spread of σ·√(τ/W) (τ the integrated
+    // autocorrelation time of the power), and a window is flagged five of those above the
+    // typical noise power.
     let mut runs: Vec<(usize, usize)> = Vec::new();
-    let mut start: Option<usize> = None;
-    for (i, p) in power.iter().enumerate() {
-        match (start, *p > threshold) {
-            (None, true) => start = Some(i),
-            (Some(s), false) => {
-                runs.push((s, i));
-                start = None;
+    let mut threshold = f64::INFINITY;
+    for scale in [50, 12, 4] {
+        let w = (n / scale).clamp(10, 20_000).min(n.max(1));
+        let level = typical + 5.0 * spread * (correlation / w as f64).sqrt().min(1.0);
+        if scale == 50 {
+            threshold = level;
+        }
+        let power = moving_average(&mismatch_power, w);
+        let mut start: Option<usize> = None;
+        for (i, p) in power.iter().enumerate() {
+            match (start, *p > level) {
+                (None, true) => start = Some(i),
+                (Some(s), false) => {
+                    runs.push((s, i));
+                    start = None;
+                }
+                _ => {}
             }
-            _ => {}
+        }
+        if let Some(s) = start {
+            runs.push((s, n));
         }
     }
-    if let Some(s) = start {
-        runs.push((s, n));
-    }
+    runs.sort();
     // Bridge short gaps and drop runs shorter than half a window: both are noise.
     let mut merged: Vec<(usize, usize)> = Vec::new();
     for run in runs {
         match merged.last_mut() {
-            Some(last) if run.0 - last.1 < window => last.1 = run.1,
+            Some(last) if run.0 <= last.1 + window => last.1 = last.1.max(run.1),
             _ => merged.push(run),
         }
     }

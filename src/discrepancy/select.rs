@@ -185,16 +185,16 @@ fn score_all(
             zty.extend(member.columns.clone().map(|c| column_dots[c].as_slice()));
             let stats = TargetStats { zty, yty };
             let family = &problem.families[member.family];
-            if let Some((driver, sign)) = family.sign {
+            if let Some(limit) = family.sign {
                 let beta = gram.full_fit(&stats, blocks)?;
                 let gain: f64 = family
-                    .driver_columns(&member.theta, driver)
+                    .driver_columns(&member.theta, limit.driver)
                     .map(|k| {
                         let c = member.columns.start + k;
                         beta[base_dots.len() + k] / problem.store.scale[c]
                     })
                     .sum();
-                if gain * sign <= 0.0 {
+                if !limit.admits(gain) {
                     return None;
                 }
             }
@@ -411,6 +411,42 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
         } else {
             Vec::new()
         };
+        // Occam: when a simpler correction (fewer columns) of another kind predicts the held-out
+        // blocks as well as the winner, the data cannot prefer the more flexible one; take
+        // the simpler and report the winner as indistinguishable.
+        let (best, runners, indistinguishable) = {
+            let width = |m: usize| problem.members[m].columns.len();
+            let simpler = indistinguishable
+                .iter()
+                .copied()
+                .filter(|&m| width(m) < width(best))
+                .min_by(|&a, &b| {
+                    width(a).cmp(&width(b)).then_with(|| {
+                        let gain =
+                            |m: usize| runners.iter().find(|r| r.0 == m).map_or(0.0, |r| r.1);
+                        gain(b).total_cmp(&gain(a))
+                    })
+                });
+            match simpler {
+                Some(chosen) => {
+                    let mut others: Vec<usize> = indistinguishable
+                        .iter()
+                        .copied()
+                        .filter(|&m| m != chosen)
+                        .collect();
+                    others.insert(0, best);
+                    let mut runners = runners.clone();
+                    let chosen_kind = problem.families[problem.members[chosen].family].kind;
+                    runners.retain(|r| {
+                        problem.families[problem.members[r.0].family].kind != chosen_kind
+                    });
+                    runners.insert(0, (best, gains[best].unwrap_or(0.0)));
+                    (chosen, runners, others)
+                }
+                None => (best, runners, indistinguishable),
+            }
+        };
+        let best_kind = problem.families[problem.members[best].family].kind;
         steps.push(Step {
             member: best,
             gain: relative * sse0,
