@@ -20,10 +20,12 @@ fn discrepancy_speed(c: &mut Criterion) {
     let sim = simulate(sim_config).expect("twin runs");
     let target = axis_column(AxisId::S, Quantity::StatorTemp);
     let options = Options::default();
+    let started = std::time::Instant::now();
     let check = analyse(&sim, &real, &target, &options).expect("analysis runs");
     eprintln!(
-        "{} rows: named {:?}",
+        "{} rows in {:.2} s: named {:?}",
         check.rows,
+        started.elapsed().as_secs_f64(),
         check
             .findings
             .iter()

@@ -64,13 +64,7 @@ impl Blocks {
     pub fn dots(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
         self.ranges
             .iter()
-            .map(|r| {
-                a[r.clone()]
-                    .iter()
-                    .zip(&b[r.clone()])
-                    .map(|(x, y)| x * y)
-                    .sum()
-            })
+            .map(|r| super::series::dot(&a[r.clone()], &b[r.clone()]))
             .collect()
     }
 }

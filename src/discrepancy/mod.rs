@@ -234,26 +234,38 @@ pub fn analyse(
     let y_binned = bin_means(&residual, &bins);
     let mut store = Store::default();
     let mut members = Vec::new();
-    for (index, family) in families.iter().enumerate() {
-        for theta in &family.grid {
-            let columns = build(family, &ctx, theta);
-            if columns.is_empty() {
-                continue;
-            }
-            let binned: Vec<Vec<f64>> = columns.iter().map(|c| bin_means(c, &bins)).collect();
-            let range = store.push(binned);
-            members.push(Member {
-                family: index,
-                theta: theta.clone(),
-                columns: range,
-            });
+    let grid: Vec<(usize, &Vec<f64>)> = families
+        .iter()
+        .enumerate()
+        .flat_map(|(index, family)| family.grid.iter().map(move |theta| (index, theta)))
+        .collect();
+    let built = series::parallel_map(&grid, |&(index, theta)| {
+        build(&families[index], &ctx, theta)
+            .iter()
+            .map(|c| bin_means(c, &bins))
+            .collect::<Vec<Vec<f64>>>()
+    });
+    for ((index, theta), binned) in grid.into_iter().zip(built) {
+        if binned.is_empty() {
+            continue;
         }
+        let range = store.push(binned);
+        members.push(Member {
+            family: index,
+            theta: theta.clone(),
+            columns: range,
+        });
     }
     let blocks = Blocks::new(y_binned.len(), options.folds, options.blocks_per_fold);
-    let views = [
-        select::View::raw(&store),
-        select::View::highpassed(&store, (y_binned.len() / 256).max(5)),
-    ];
+    let highpass_window = (y_binned.len() / 256).max(5);
+    let mut views = series::parallel_map(&[false, true], |&high| {
+        if high {
+            select::View::highpassed(&store, highpass_window)
+        } else {
+            select::View::raw(&store)
+        }
+    });
+    views.truncate(2);
     let mut refined: Vec<(usize, Vec<f64>)> = Vec::new();
     let steps = stepwise(
         &Problem {

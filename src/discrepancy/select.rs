@@ -3,13 +3,15 @@
 //! autocorrelation (phase-randomised residuals), taking the largest gain over the whole library
 //! for every surrogate, so choosing the best of many candidates is paid for.
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 
 use super::Options;
 use super::cv::{Blocks, ModelGram, TargetStats, least_squares};
 use super::library::{Family, Kind};
-use super::series::{SurrogateSpectrum, mean, moving_average, std_dev};
+use super::series::{SurrogateSpectrum, mean, moving_average, parallel_map, std_dev};
 
 /// One candidate member: a family at one point of its parameter grid.
 #[derive(Debug, Clone)]
@@ -111,6 +113,8 @@ pub struct View {
     pub columns: Vec<Vec<f64>>,
     /// Whether each column still varies in this view.
     pub usable: Vec<bool>,
+    /// The same columns as one rows × columns matrix, for the surrogates' products.
+    matrix: Mat<f64>,
 }
 
 impl View {
@@ -118,6 +122,7 @@ impl View {
     pub fn raw(store: &Store) -> View {
         View {
             highpass: None,
+            matrix: as_matrix(&store.columns),
             columns: store.columns.clone(),
             usable: store.usable.clone(),
         }
@@ -136,6 +141,7 @@ impl View {
         }
         View {
             highpass: Some(window),
+            matrix: as_matrix(&columns),
             columns,
             usable,
         }
@@ -148,6 +154,11 @@ impl View {
             None => values.to_vec(),
         }
     }
+}
+
+fn as_matrix(columns: &[Vec<f64>]) -> Mat<f64> {
+    let rows = columns.first().map_or(0, Vec::len);
+    Mat::from_fn(rows, columns.len(), |i, c| columns[c][i])
 }
 
 fn highpass(values: &[f64], window: usize) -> Vec<f64> {
@@ -230,14 +241,73 @@ impl ViewStep<'_> {
             .map(|c| blocks.dots(c, &y))
             .collect();
         let yty = blocks.dots(&y, &y);
+        self.gains_from(problem, &base_dots, &column_dots, &yty)
+    }
+
+    /// The largest relative gain of any member for each of many targets `ys` (raw binned),
+    /// computing every column's products with every target as one matrix product per block.
+    fn max_gains(&self, problem: &Problem<'_>, ys: &[Vec<f64>]) -> Vec<f64> {
+        let blocks = problem.blocks;
+        let transformed: Vec<Vec<f64>> = ys.iter().map(|y| self.view.transform(y)).collect();
+        let targets = as_matrix(&transformed);
+        let columns = self.view.columns.len();
+        // products[b] is columns × targets for block b.
+        let products: Vec<Mat<f64>> = blocks
+            .ranges
+            .iter()
+            .map(|r| {
+                let mut out = Mat::<f64>::zeros(columns, ys.len());
+                matmul(
+                    out.as_mut(),
+                    Accum::Replace,
+                    self.view
+                        .matrix
+                        .as_ref()
+                        .subrows(r.start, r.len())
+                        .transpose(),
+                    targets.as_ref().subrows(r.start, r.len()),
+                    1.0,
+                    Par::Seq,
+                );
+                out
+            })
+            .collect();
+        transformed
+            .iter()
+            .enumerate()
+            .map(|(j, y)| {
+                let base_dots: Vec<Vec<f64>> =
+                    self.base.iter().map(|c| blocks.dots(c, y)).collect();
+                let column_dots: Vec<Vec<f64>> = (0..columns)
+                    .map(|c| products.iter().map(|p| p[(c, j)]).collect())
+                    .collect();
+                let yty = blocks.dots(y, y);
+                self.gains_from(problem, &base_dots, &column_dots, &yty)
+                    .map_or(f64::NEG_INFINITY, |(_, g)| {
+                        g.iter()
+                            .flatten()
+                            .copied()
+                            .fold(f64::NEG_INFINITY, f64::max)
+                    })
+            })
+            .collect()
+    }
+
+    fn gains_from(
+        &self,
+        problem: &Problem<'_>,
+        base_dots: &[Vec<f64>],
+        column_dots: &[Vec<f64>],
+        yty: &[f64],
+    ) -> Option<(f64, Vec<Option<f64>>)> {
         let (sse0, scored) = score_all(
             problem,
             self.view,
             &self.grams,
             &self.base_gram,
-            &base_dots,
-            &column_dots,
-            &yty,
+            base_dots,
+            column_dots,
+            yty,
         );
         let sse0 = sse0.filter(|s| *s > 0.0)?;
         Some((
@@ -260,38 +330,36 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
     let mut chosen_kinds: Vec<Kind> = Vec::new();
     let mut steps = Vec::new();
     for _ in 0..options.max_steps {
-        let view_steps: Vec<ViewStep<'_>> = problem
-            .views
-            .iter()
-            .map(|view| {
-                let view_base: Vec<Vec<f64>> = base
-                    .iter()
-                    .map(|c| view.transform(c))
-                    .filter(|c| std_dev(c) > 1e-9 || view.highpass.is_none())
-                    .collect();
-                let base_columns: Vec<&[f64]> = view_base.iter().map(|c| c.as_slice()).collect();
-                let grams = problem
-                    .members
-                    .iter()
-                    .map(|member| {
-                        let kind = problem.families[member.family].kind;
-                        let usable = member.columns.clone().all(|c| view.usable[c]);
-                        if chosen_kinds.contains(&kind) || !usable || member.columns.is_empty() {
-                            return None;
-                        }
-                        let mut columns = base_columns.clone();
-                        columns.extend(member.columns.clone().map(|c| view.columns[c].as_slice()));
-                        Some(ModelGram::new(&columns, blocks))
-                    })
-                    .collect();
-                ViewStep {
-                    view,
-                    base_gram: ModelGram::new(&base_columns, blocks),
-                    base: view_base,
-                    grams,
-                }
-            })
-            .collect();
+        let view_indices: Vec<usize> = (0..problem.views.len()).collect();
+        let view_steps: Vec<ViewStep<'_>> = parallel_map(&view_indices, |&v| {
+            let view = &problem.views[v];
+            let view_base: Vec<Vec<f64>> = base
+                .iter()
+                .map(|c| view.transform(c))
+                .filter(|c| std_dev(c) > 1e-9 || view.highpass.is_none())
+                .collect();
+            let base_columns: Vec<&[f64]> = view_base.iter().map(|c| c.as_slice()).collect();
+            let grams = problem
+                .members
+                .iter()
+                .map(|member| {
+                    let kind = problem.families[member.family].kind;
+                    let usable = member.columns.clone().all(|c| view.usable[c]);
+                    if chosen_kinds.contains(&kind) || !usable || member.columns.is_empty() {
+                        return None;
+                    }
+                    let mut columns = base_columns.clone();
+                    columns.extend(member.columns.clone().map(|c| view.columns[c].as_slice()));
+                    Some(ModelGram::new(&columns, blocks))
+                })
+                .collect();
+            ViewStep {
+                view,
+                base_gram: ModelGram::new(&base_columns, blocks),
+                base: view_base,
+                grams,
+            }
+        });
         let observed: Vec<Option<(f64, Vec<Option<f64>>)>> = view_steps
             .iter()
             .map(|v| v.gains(problem, problem.y))
@@ -309,25 +377,17 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
         let residual: Vec<f64> = problem.y.iter().zip(&fitted).map(|(y, f)| y - f).collect();
         let spectrum = SurrogateSpectrum::new(&residual);
         // null[j][v] = the largest relative gain of any member in view v for surrogate j.
-        let mut null: Vec<Vec<f64>> = Vec::with_capacity(options.surrogates);
-        for _ in 0..options.surrogates {
-            let noise = spectrum.draw(&mut rng);
-            let y_star: Vec<f64> = fitted.iter().zip(&noise).map(|(f, e)| f + e).collect();
-            null.push(
-                view_steps
-                    .iter()
-                    .map(|v| {
-                        v.gains(problem, &y_star)
-                            .map_or(f64::NEG_INFINITY, |(_, g)| {
-                                g.iter()
-                                    .flatten()
-                                    .copied()
-                                    .fold(f64::NEG_INFINITY, f64::max)
-                            })
-                    })
-                    .collect(),
-            );
-        }
+        let surrogate_targets: Vec<Vec<f64>> = (0..options.surrogates)
+            .map(|_| {
+                let noise = spectrum.draw(&mut rng);
+                fitted.iter().zip(&noise).map(|(f, e)| f + e).collect()
+            })
+            .collect();
+        let per_view: Vec<Vec<f64>> =
+            parallel_map(&view_steps, |v| v.max_gains(problem, &surrogate_targets));
+        let null: Vec<Vec<f64>> = (0..surrogate_targets.len())
+            .map(|j| per_view.iter().map(|v| v[j]).collect())
+            .collect();
         // Min-P over the views: each view's best gain gets a p-value against that view's
         // null maxima, and the smallest is compared with the smallest of every surrogate, so
         // looking twice is paid for. Ties go to the data as they are (view 0).

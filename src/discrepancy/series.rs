@@ -13,13 +13,40 @@ pub fn lowpass(time: &[f64], values: &[f64], tau_s: f64) -> Vec<f64> {
     };
     let mut state = first;
     let mut previous_t = time.first().copied().unwrap_or(0.0);
+    // Recordings are mostly on a regular grid: the gain is recomputed only when the step
+    // changes (the exponential is the cost of this loop).
+    let (mut last_step, mut gain) = (f64::NAN, 0.0);
     for (&t, &u) in time.iter().zip(values) {
-        let gain = -(-(t - previous_t) / tau_s).exp_m1();
+        let step = t - previous_t;
+        if step != last_step {
+            gain = -(-step / tau_s).exp_m1();
+            last_step = step;
+        }
         state += gain * (u - state);
         previous_t = t;
         out.push(state);
     }
     out
+}
+
+/// Dot product with four accumulators (lets the compiler vectorise the reduction).
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0_f64; 4];
+    let chunks = n / 4;
+    for k in 0..chunks {
+        let i = 4 * k;
+        acc[0] += a[i] * b[i];
+        acc[1] += a[i + 1] * b[i + 1];
+        acc[2] += a[i + 2] * b[i + 2];
+        acc[3] += a[i + 3] * b[i + 3];
+    }
+    let mut total = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for i in 4 * chunks..n {
+        total += a[i] * b[i];
+    }
+    total
 }
 
 /// `values` as they were `seconds` earlier (negative: later), linearly interpolated; before the
@@ -74,6 +101,33 @@ pub fn legendre(k: usize, u: f64) -> f64 {
         2 => 0.5 * (3.0 * u * u - 1.0),
         _ => 0.5 * (5.0 * u * u * u - 3.0 * u),
     }
+}
+
+/// `f` over `items` on up to as many threads as the machine has cores (at most four), the
+/// results in the order of the items. The work items here are independent and similar in
+/// size, so contiguous chunks balance well.
+pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .clamp(1, 4)
+        .min(items.len().max(1));
+    if threads <= 1 {
+        return items.iter().map(&f).collect();
+    }
+    let chunk = items.len().div_ceil(threads);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = items
+            .chunks(chunk)
+            .map(|part| scope.spawn(|| part.iter().map(&f).collect::<Vec<R>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| match h.join() {
+                Ok(results) => results,
+                Err(panic) => std::panic::resume_unwind(panic),
+            })
+            .collect()
+    })
 }
 
 /// Arithmetic mean (0 for an empty slice).
@@ -165,26 +219,33 @@ pub fn moving_average(values: &[f64], window: usize) -> Vec<f64> {
 }
 
 /// Integrated autocorrelation time of `values`, in samples: 1 + 2 Σ ρ_k summed up to the first
-/// lag where the autocorrelation drops below zero (capped at `max_lag`).
+/// lag where the autocorrelation drops below zero (capped at `max_lag`). The autocorrelation
+/// comes from one FFT of the zero-padded series (O(n log n) for any lag range).
 pub fn integrated_autocorrelation(values: &[f64], max_lag: usize) -> f64 {
     let n = values.len();
     if n < 3 {
         return 1.0;
     }
     let m = mean(values);
-    let centred: Vec<f64> = values.iter().map(|v| v - m).collect();
-    let variance: f64 = centred.iter().map(|v| v * v).sum();
+    let size = (2 * n).next_power_of_two();
+    let mut re = vec![0.0; size];
+    let mut im = vec![0.0; size];
+    for (slot, v) in re.iter_mut().zip(values) {
+        *slot = v - m;
+    }
+    fft_radix2(&mut re, &mut im, false);
+    for (r, i) in re.iter_mut().zip(im.iter_mut()) {
+        *r = *r * *r + *i * *i;
+        *i = 0.0;
+    }
+    fft_radix2(&mut re, &mut im, true);
+    let variance = re[0];
     if variance <= 0.0 {
         return 1.0;
     }
     let mut total = 1.0;
-    for lag in 1..max_lag.min(n - 1) {
-        let rho: f64 = centred[..n - lag]
-            .iter()
-            .zip(&centred[lag..])
-            .map(|(a, b)| a * b)
-            .sum::<f64>()
-            / variance;
+    for &c in re.iter().take(max_lag.min(n - 1)).skip(1) {
+        let rho = c / variance;
         if rho <= 0.0 {
             break;
         }
