@@ -822,20 +822,33 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             out.push(Family {
                 kind: Kind::Physics(Physics::CoulombReversal),
                 signals: vec![speed_name.clone()],
-                theta_names: vec![],
-                grid: vec![vec![]],
+                // The Stribeck speed as a share of the axis's top speed (0: Coulomb alone).
+                theta_names: vec!["stribeck_share"],
+                grid: vec![vec![0.0], vec![0.002], vec![0.006], vec![0.02]],
                 refine: None,
-                build: Box::new(move |ctx, _| {
+                build: Box::new(move |ctx, theta| {
                     let Some(a) = ctx.axis(axis) else {
                         return vec![];
                     };
-                    vec![
-                        a.direction
-                            .iter()
-                            .enumerate()
-                            .map(|(i, d)| oriented(ctx, *d, i))
-                            .collect(),
-                    ]
+                    let coulomb: Vec<f64> = a
+                        .direction
+                        .iter()
+                        .enumerate()
+                        .map(|(i, d)| oriented(ctx, *d, i))
+                        .collect();
+                    let share = theta.first().copied().unwrap_or(0.0);
+                    if share <= 0.0 {
+                        return vec![coulomb];
+                    }
+                    // The extra friction near standstill (Stribeck) that fades with speed.
+                    let top = a.speed.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                    let speed_scale = (share * top).max(1e-9);
+                    let stribeck = coulomb
+                        .iter()
+                        .zip(&a.speed)
+                        .map(|(c, n)| c * (-n.abs() / speed_scale).exp())
+                        .collect();
+                    vec![coulomb, stribeck]
                 }),
                 sign: None,
                 axis: Some(axis),
@@ -855,8 +868,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         let Some(position) = a.position.as_ref() else {
                             return vec![];
                         };
+                        // P₀ (the direction alone) is included so that this family nests
+                        // Coulomb friction: a profile whose mean differs from zero is still a
+                        // profile; a flat one is left to `coulomb_reversal` (fewer columns).
                         let u = normalised_position(position);
-                        (1..=3)
+                        (0..=3)
                             .map(|k| {
                                 a.direction
                                     .iter()
@@ -1107,6 +1123,9 @@ pub fn explain(
         }
         Kind::Physics(Physics::CoulombReversal) => {
             p.insert("friction_step".into(), c0);
+            if let Some(c1) = coefficients.get(1) {
+                p.insert("stribeck_excess".into(), *c1);
+            }
             format!(
                 "direction-dependent {axis_name} friction of ±{:.4}{unit} (a {:.4}{unit} jump at every reversal) that the simulation {}",
                 c0.abs(),
@@ -1131,7 +1150,7 @@ pub fn explain(
                     coefficients
                         .iter()
                         .enumerate()
-                        .map(|(j, c)| c * legendre(j + 1, u))
+                        .map(|(j, c)| c * legendre(j, u))
                         .sum()
                 };
                 let (mut lo, mut hi) = ((f64::INFINITY, 0.0), (f64::NEG_INFINITY, 0.0));

@@ -98,12 +98,17 @@ pub enum DiscrepancyError {
 pub struct Options {
     /// Time-blocked cross-validation folds.
     pub folds: usize,
-    /// Blocks per fold (a gap block on each side of a held-out run is left out of training).
+    /// Blocks per fold (one gap block on each side of a held-out run is left out of training).
     pub blocks_per_fold: usize,
     /// Phase-randomised surrogates per selection step.
     pub surrogates: usize,
     /// Significance level of a step (with 99 surrogates, 0.01 means: better than every one).
     pub alpha: f64,
+    /// A finding must also lie beyond this upper-tail probability of a Gumbel law fitted to
+    /// the surrogates' maxima (so that barely beating the largest surrogate is not enough)…
+    pub tail_alpha: f64,
+    /// …unless its held-out gain is at least this share of the error before the step.
+    pub dominant_gain: f64,
     /// Smallest held-out gain worth reporting, as a share of the held-out error before the step.
     pub min_relative_gain: f64,
     /// Most selection steps (calibration and physics together).
@@ -126,6 +131,8 @@ impl Default for Options {
             blocks_per_fold: 4,
             surrogates: 99,
             alpha: 0.01,
+            tail_alpha: 1e-4,
+            dominant_gain: 0.8,
             min_relative_gain: 0.02,
             max_steps: 4,
             max_selection_rows: 8192,
@@ -549,6 +556,7 @@ pub fn analyse(
                         0.0
                     },
                     p_value: s.p_value,
+                    tail_p: s.tail_p,
                     accepted: s.accepted,
                 })
                 .collect(),

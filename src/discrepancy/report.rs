@@ -130,6 +130,8 @@ pub struct StepTrace {
     pub relative_gain: f64,
     /// Its surrogate p-value.
     pub p_value: f64,
+    /// Its upper-tail probability under a Gumbel law fitted to the surrogates' maxima.
+    pub tail_p: f64,
     /// Whether it entered the model.
     pub accepted: bool,
 }

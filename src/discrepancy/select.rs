@@ -1,7 +1,10 @@
 //! Selection that does not fool itself: stepwise, each step scored by time-blocked
 //! cross-validated gain and tested against a surrogate null that keeps the residual's
 //! autocorrelation (phase-randomised residuals), taking the largest gain over the whole library
-//! for every surrogate, so choosing the best of many candidates is paid for.
+//! for every surrogate, so choosing the best of many candidates is paid for. Two views of the
+//! data (as they are, and high-passed) are combined by min-P so that slow correlated noise
+//! cannot hide fast effects; among candidates the held-out blocks cannot tell apart, the
+//! simplest is taken and the others are reported.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
@@ -72,6 +75,8 @@ pub struct Step {
     pub sse_before: f64,
     /// Surrogate p-value of the gain (max over the library).
     pub p_value: f64,
+    /// Upper-tail probability of the gain under a Gumbel law fitted to the surrogates' maxima.
+    pub tail_p: f64,
     /// Accepted (significant and large enough).
     pub accepted: bool,
     /// Best members of other kinds, with their gains (strongest first).
@@ -94,6 +99,37 @@ pub struct Problem<'a> {
     pub families: &'a [Family],
     /// Their columns.
     pub store: &'a Store,
+}
+
+/// A Gumbel distribution (the limit law of maxima), fitted by moments.
+#[derive(Debug, Clone, Copy)]
+struct Gumbel {
+    location: f64,
+    scale: f64,
+}
+
+impl Gumbel {
+    /// Fits the maxima; `None` with fewer than ten or without spread.
+    fn fit(maxima: &[f64]) -> Option<Gumbel> {
+        if maxima.len() < 10 {
+            return None;
+        }
+        let scale = std_dev(maxima) * 6.0_f64.sqrt() / std::f64::consts::PI;
+        if !(scale.is_finite() && scale > 0.0) {
+            return None;
+        }
+        Some(Gumbel {
+            location: mean(maxima) - 0.577_215_664_901_532_9 * scale,
+            scale,
+        })
+    }
+
+    /// P(max ≥ x).
+    fn survival(&self, x: f64) -> f64 {
+        let z = (x - self.location) / self.scale;
+        // 1 − exp(−e^(−z)), accurate far in the tail.
+        -(-(-z).exp()).exp_m1()
+    }
 }
 
 /// One way of looking at the data: as it is, or high-passed.
@@ -170,7 +206,6 @@ fn highpass(values: &[f64], window: usize) -> Vec<f64> {
 /// and the base's own held-out SSE.
 fn score_all(
     problem: &Problem<'_>,
-    view: &View,
     grams: &[Option<ModelGram>],
     base_gram: &ModelGram,
     base_dots: &[Vec<f64>],
@@ -209,7 +244,6 @@ fn score_all(
                     return None;
                 }
             }
-            let _ = view;
             gram.cv_sse(&stats, blocks)
         })
         .collect();
@@ -302,7 +336,6 @@ impl ViewStep<'_> {
     ) -> Option<(f64, Vec<Option<f64>>)> {
         let (sse0, scored) = score_all(
             problem,
-            self.view,
             &self.grams,
             &self.base_gram,
             base_dots,
@@ -424,6 +457,24 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
             })
             .count();
         let p_value = (1 + exceed) as f64 / (options.surrogates + 1) as f64;
+        // Beating every surrogate happens by chance once in (surrogates + 1) steps. A finding
+        // must also stand clear of the surrogates' maxima: the upper tail of a Gumbel
+        // (extreme-value) law fitted to them must put it beyond `options.tail_alpha` — unless
+        // it explains most of the held-out error, which noise that its own surrogates cannot
+        // match does not do.
+        let winner_gain = observed[best_view]
+            .as_ref()
+            .and_then(|(_, g)| g[winner])
+            .unwrap_or(0.0);
+        let tail_p = Gumbel::fit(
+            &null
+                .iter()
+                .map(|row| row[best_view])
+                .filter(|g| g.is_finite())
+                .collect::<Vec<_>>(),
+        )
+        .map_or(p_value, |tail| tail.survival(winner_gain));
+        let clear_of_null = tail_p <= options.tail_alpha || winner_gain >= options.dominant_gain;
         // Within the winning kind, the member (its τ, its delay) is the one that predicts the
         // data as they are best, since that is the model reported; the view only decided
         // whether the kind is real.
@@ -444,7 +495,8 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
             break;
         };
         let relative = gains[winner].unwrap_or(0.0);
-        let accepted = p_value <= options.alpha && relative >= options.min_relative_gain;
+        let accepted =
+            p_value <= options.alpha && relative >= options.min_relative_gain && clear_of_null;
 
         // The best member of every other kind in the winning view, for the "could it be
         // something else" check.
@@ -512,6 +564,7 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
             gain: relative * sse0,
             sse_before: *sse0,
             p_value,
+            tail_p,
             accepted,
             runners_up: runners,
             indistinguishable,

@@ -94,9 +94,10 @@ pub fn smooth_sign(x: f64, epsilon: f64) -> f64 {
     (x / epsilon).clamp(-1.0, 1.0)
 }
 
-/// Legendre polynomial P_k at `u` in [-1, 1], for k = 1..=3.
+/// Legendre polynomial P_k at `u` in [-1, 1], for k = 0..=3.
 pub fn legendre(k: usize, u: f64) -> f64 {
     match k {
+        0 => 1.0,
         1 => u,
         2 => 0.5 * (3.0 * u * u - 1.0),
         _ => 0.5 * (5.0 * u * u * u - 3.0 * u),
