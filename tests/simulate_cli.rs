@@ -242,3 +242,34 @@ fn inspect_into_a_closed_pipe_ends_quietly() {
     child.wait().unwrap();
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// A recorder that lost power leaves a last line cut short: inspect still reads the rest and
+/// says what it left out. A complete last line without a line end is simply read.
+#[test]
+fn inspect_reads_a_file_whose_last_line_was_cut_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let cut = dir.path().join("cut.csv");
+    // Cut inside the last row: its second field is missing.
+    std::fs::write(&cut, "time_s,X.speed_rpm\n0,1\n1,2\n2,3.5\n3").unwrap();
+    let run = servosight(&["inspect", arg(&cut), "--json", "-"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stderr(&run).contains("cut short"), "{}", stderr(&run));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+    assert_eq!(report["rows"], 3);
+    assert_eq!(report["last_line_cut_short"], true);
+
+    let complete = dir.path().join("complete.csv");
+    std::fs::write(&complete, "time_s,X.speed_rpm\n0,1\n1,2").unwrap();
+    let run = servosight(&["inspect", arg(&complete), "--json", "-"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stderr(&run).is_empty(), "{}", stderr(&run));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+    assert_eq!(report["rows"], 2);
+
+    // A bad row before the last line is still an error.
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "time_s,X.speed_rpm\n0,x\n1,2\n2").unwrap();
+    let run = servosight(&["inspect", arg(&bad)]);
+    assert!(!run.status.success());
+    assert!(stderr(&run).contains("line 2"), "{}", stderr(&run));
+}

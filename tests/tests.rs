@@ -2,8 +2,11 @@
 
 mod common;
 mod discrepancy;
+mod estimators_cli;
 mod fit;
 mod link_replay;
 mod modbus_peer;
 mod recording_format;
 mod simulate_cli;
+mod ui_hmi;
+mod ui_view_models;

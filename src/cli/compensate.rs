@@ -222,7 +222,8 @@ fn read_password() -> anyhow::Result<String> {
     Ok(password)
 }
 
-fn load_limits(path: Option<&Path>) -> anyhow::Result<CompensationLimits> {
+/// The `[compensation_limits]` table of a TOML file, or conservative built-in limits.
+pub(crate) fn load_limits(path: Option<&Path>) -> anyhow::Result<CompensationLimits> {
     #[derive(serde::Deserialize)]
     struct Profile {
         compensation_limits: CompensationLimits,

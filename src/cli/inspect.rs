@@ -40,6 +40,9 @@ struct Summary {
     metadata: Vec<(String, String)>,
     gaps: Vec<Gap>,
     column_summaries: Vec<ColumnSummary>,
+    /// The file ended in the middle of a line (a recorder stopped by a power loss) and that
+    /// line was left out.
+    last_line_cut_short: bool,
 }
 
 #[derive(Debug, serde::Serialize)]
@@ -49,8 +52,12 @@ struct Gap {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let recording = read_recording(&args.file).context("cannot read recording")?;
-    let summary = summarise(&recording, args.gap_factor);
+    let (recording, cut_short) = read_allowing_a_cut_last_line(&args.file)?;
+    if let Some(note) = &cut_short {
+        eprintln!("warning: {note}");
+    }
+    let mut summary = summarise(&recording, args.gap_factor);
+    summary.last_line_cut_short = cut_short.is_some();
     match &args.json {
         Some(path) => crate::servosight_cli::write_json(path, &summary)?,
         None => print_table(&summary),
@@ -97,6 +104,21 @@ fn summarise(recording: &Recording, gap_factor: f64) -> Summary {
             })
             .collect(),
         column_summaries,
+        last_line_cut_short: false,
+    }
+}
+
+/// Reads a recording; when the only fault is a last line cut short (a recorder that lost power
+/// mid-write), reads everything before it and says so. Any other fault is an error as usual.
+fn read_allowing_a_cut_last_line(
+    path: &std::path::Path,
+) -> anyhow::Result<(Recording, Option<servosight::signal::RecordingError>)> {
+    match read_recording(path) {
+        Ok(recording) => Ok((recording, None)),
+        Err(error) => match servosight::link::recorder::read_possibly_truncated(path) {
+            Ok((recording, Some(cut))) => Ok((recording, Some(cut))),
+            _ => Err(error).context("cannot read recording"),
+        },
     }
 }
 

@@ -8,9 +8,15 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod audit;
+mod backlash;
+mod calibrate;
 mod compensate;
+mod depth_of_cut;
 mod discrepancy;
+mod estimate;
+mod fingerprint;
 mod fit;
+mod hmi;
 pub mod inspect;
 mod record;
 mod register_map;
@@ -21,7 +27,11 @@ mod simulate;
 /// servosight: sensorless machine-tool condition monitoring from servo drive signals.
 #[derive(Debug, Parser)]
 #[command(name = "servosight", version, about, long_about = None)]
+#[command(args_conflicts_with_subcommands = true)]
 struct Cli {
+    /// With no subcommand: open the HMI (on the embedded twin unless --replay or --port).
+    #[command(flatten)]
+    hmi: hmi::Args,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -34,6 +44,18 @@ enum Command {
     Inspect(inspect::Args),
     /// Multiple regression with F-test, R², t/p/CI, sensitivity and optional term selection.
     Fit(fit::Args),
+    /// Measure backlash from a backlash-test recording (current rise once the table is driven).
+    Backlash(backlash::Args),
+    /// Write the NC program of the backlash test (under 10 minutes of machine time).
+    BacklashProgram(backlash::ProgramArgs),
+    /// Fit every estimator from a simulation database and a few experiments (Eqs. 7–15).
+    Calibrate(calibrate::Args),
+    /// Recommend the maximum rough-cut depth from the loads measured during cuts.
+    DepthOfCut(depth_of_cut::Args),
+    /// Run every estimator over a recording; score against reference columns (Table 3).
+    Estimate(estimate::Args),
+    /// Friction fingerprint of an axis from its warm-up moves, trended, with the preload diagnosis.
+    Fingerprint(fingerprint::Args),
     /// Print the Modbus register map (JSON, or the Markdown tables of docs/register-map.md).
     RegisterMap(register_map::Args),
     /// Record every frame a controller sends (Modbus RTU) to a CSV v1 file.
@@ -46,6 +68,8 @@ enum Command {
     Discrepancy(discrepancy::Args),
     /// Serve a recording as a Modbus RTU controller speaking the register map.
     SimController(sim_controller::Args),
+    /// Headless: simulate a 10-hour production day on the twin and summarise it.
+    DaySummary,
 }
 
 /// Parses the command line, runs the command, and maps errors to one line on stderr.
@@ -55,13 +79,20 @@ pub fn run() -> ExitCode {
         Some(Command::Simulate(args)) => simulate::run(args),
         Some(Command::Inspect(args)) => inspect::run(args),
         Some(Command::Fit(args)) => fit::run(args),
+        Some(Command::Backlash(args)) => backlash::run(args),
+        Some(Command::BacklashProgram(args)) => backlash::run_program(args),
+        Some(Command::Calibrate(args)) => calibrate::run(args),
+        Some(Command::DepthOfCut(args)) => depth_of_cut::run(args),
+        Some(Command::Estimate(args)) => estimate::run(args),
+        Some(Command::Fingerprint(args)) => fingerprint::run(args),
         Some(Command::RegisterMap(args)) => register_map::run(args),
         Some(Command::Record(args)) => record::run(args),
         Some(Command::Compensate(args)) => compensate::run(args),
         Some(Command::Audit(args)) => audit::run(args),
         Some(Command::Discrepancy(args)) => discrepancy::run(args),
         Some(Command::SimController(args)) => sim_controller::run(args),
-        None => simulate::run_default_day(),
+        Some(Command::DaySummary) => simulate::run_default_day(),
+        None => hmi::run(cli.hmi),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -10,6 +10,15 @@ pub struct SerialArgs {
     /// Serial device of the controller (e.g. /dev/ttyUSB0, or one end of a socat pty pair).
     #[arg(long)]
     pub port: String,
+    /// Line settings.
+    #[command(flatten)]
+    pub line: SerialLineArgs,
+}
+
+/// The serial line and polling settings, shared by every command that may talk to a
+/// controller (the HMI takes them with an optional `--port`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct SerialLineArgs {
     /// Baud rate.
     #[arg(long, default_value_t = 115_200)]
     pub baud: u32,
@@ -33,7 +42,14 @@ pub struct SerialArgs {
 impl SerialArgs {
     /// The link configuration.
     pub fn config(&self) -> ModbusConfig {
-        let mut config = ModbusConfig::new(&self.port);
+        self.line.config(&self.port)
+    }
+}
+
+impl SerialLineArgs {
+    /// The link configuration for the controller on `port`.
+    pub fn config(&self, port: &str) -> ModbusConfig {
+        let mut config = ModbusConfig::new(port);
         config.baud = self.baud;
         config.parity = self.parity;
         config.stop_bits = self.stop_bits;

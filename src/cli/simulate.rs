@@ -124,7 +124,7 @@ pub fn write_simulation(config: TwinConfig, output: &std::path::Path) -> anyhow:
     Ok(rows)
 }
 
-/// The main job until the HMI exists: simulate a production day and summarise it.
+/// `servosight day-summary`: the headless equivalent of the HMI — simulate a production day and summarise it.
 pub fn run_default_day() -> anyhow::Result<()> {
     let dir = std::env::temp_dir().join("servosight");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;

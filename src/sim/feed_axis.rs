@@ -433,17 +433,7 @@ impl FeedAxisModel {
         let torque = inertia_torque + front_torque + back_torque + nut_torque;
         let op = motor_operating_point(&p.motor, torque, speed_rpm, temps[STATOR], true);
 
-        let copper = if self.effects.has(Effect::CopperLoss) {
-            op.copper_loss_W
-        } else {
-            0.0
-        };
-        let iron = if self.effects.has(Effect::IronLoss) {
-            op.iron_loss_W
-        } else {
-            0.0
-        };
-        self.heat_J[STATOR] += (copper + iron) * dt;
+        self.heat_J[STATOR] += op.stator_heat_W(self.effects) * dt;
         self.heat_J[FRONT] += (front_torque * omega).abs() * dt;
         self.heat_J[BACK] += (back_torque * omega).abs() * dt;
         let nut_loss = (preload_drag * omega).abs() + (thrust - thrust_ideal).abs() * omega.abs();

@@ -2,6 +2,7 @@
 //! bearing friction (Palmgren), ball-screw preload drag (catalogue formula), and the motor's
 //! torque ↔ current and loss model.
 
+use super::effects::{Effect, EffectSet};
 use super::machine::{BearingParams, LubricantParams, MotorParams};
 
 /// rpm → rad/s.
@@ -69,6 +70,23 @@ pub struct MotorOperatingPoint {
     pub iron_loss_W: f64,
     /// Load, % of rated torque.
     pub load_pct: f64,
+}
+
+impl MotorOperatingPoint {
+    /// Heat into the stator, W: the copper and iron losses the twin simulates.
+    pub fn stator_heat_W(&self, effects: EffectSet) -> f64 {
+        let copper = if effects.has(Effect::CopperLoss) {
+            self.copper_loss_W
+        } else {
+            0.0
+        };
+        let iron = if effects.has(Effect::IronLoss) {
+            self.iron_loss_W
+        } else {
+            0.0
+        };
+        copper + iron
+    }
 }
 
 /// The motor at `torque_Nm` and `speed_rpm` with the stator at `stator_C`.

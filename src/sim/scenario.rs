@@ -526,11 +526,11 @@ impl ScenarioGenerator {
             },
             // Turn-mill: the spindle indexes (C axis) while X contours a milled feature.
             Block {
-                duration_s: rng.random_range(60.0..180.0),
+                duration_s: rng.random_range(120.0..360.0),
                 x: XActivity::Traverse {
                     from_mm: x0,
                     to_mm: (x0 + rng.random_range(60.0..160.0)).min(stroke),
-                    feed_mm_per_min: rng.random_range(2000.0..8000.0),
+                    feed_mm_per_min: rng.random_range(3000.0..12000.0),
                     dwell_s: 0.2,
                 },
                 ..Block::idle(0.0, 0.0, "milling")
@@ -570,7 +570,9 @@ impl ScenarioGenerator {
         let rng = &mut self.rng;
         (0..24)
             .map(|_| {
-                let duration_s = rng.random_range(900.0..2700.0);
+                // Log-uniform from 10 minutes to 2 hours, so the database holds both quick
+                // changes and slow structural heating and cooling.
+                let duration_s = 600.0 * rng.random_range(0.0..(12.0_f64).ln()).exp();
                 // A quarter of the blocks rest, so cooling curves are in the database too.
                 if rng.random_bool(0.25) {
                     return Block::idle(duration_s, rng.random_range(0.0..stroke), "rest");

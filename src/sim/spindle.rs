@@ -158,17 +158,7 @@ impl SpindleModel {
         let op: MotorOperatingPoint =
             motor_operating_point(&p.motor, torque, n, temps[STATOR], energised);
 
-        let copper = if self.effects.has(Effect::CopperLoss) {
-            op.copper_loss_W
-        } else {
-            0.0
-        };
-        let iron = if self.effects.has(Effect::IronLoss) {
-            op.iron_loss_W
-        } else {
-            0.0
-        };
-        self.heat_J[STATOR] += (copper + iron) * dt;
+        self.heat_J[STATOR] += op.stator_heat_W(self.effects) * dt;
         self.heat_J[FRONT] += (front_torque * omega).abs() * dt;
         self.heat_J[REAR] += (rear_torque * omega).abs() * dt;
         self.speed_integral += n * dt;

@@ -1,0 +1,133 @@
+//! `servosight backlash` and `servosight backlash-program`: the paper's servo-signal backlash test.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use servosight::estimators::backlash::{analyse_backlash, nc_program};
+use servosight::profile::MachineProfile;
+use servosight::signal::{AxisId, read_recording};
+use servosight::sim::BacklashTestPlan;
+
+/// Arguments of `servosight backlash`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A recording of the backlash test (command, position and current at ≥ 200 Hz).
+    #[arg(long)]
+    pub recording: PathBuf,
+    /// The axis tested.
+    #[arg(long, value_parser = parse_axis)]
+    pub axis: AxisId,
+    /// Machine profile (for the screw lead); default: the twin's machine.
+    #[arg(long)]
+    pub profile: Option<PathBuf>,
+    /// Write `{axis, backlash_um, by_speed, confidence}` as JSON ("-" for stdout).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// Arguments of `servosight backlash-program`.
+#[derive(Debug, clap::Args)]
+pub struct ProgramArgs {
+    /// The axis to test.
+    #[arg(long, value_parser = parse_axis)]
+    pub axis: AxisId,
+    /// Where the test runs, mm.
+    #[arg(long, default_value_t = 200.0)]
+    pub centre_mm: f64,
+    /// The controller's minimum increment, µm (the first amplitude).
+    #[arg(long, default_value_t = 1.0)]
+    pub min_increment_um: f64,
+    /// Largest amplitude, µm.
+    #[arg(long, default_value_t = 100.0)]
+    pub max_amplitude_um: f64,
+    /// Feeds to test, mm/min (comma separated).
+    #[arg(long, value_delimiter = ',', default_value = "20,60,200")]
+    pub feeds: Vec<f64>,
+    /// Axis acceleration for the time estimate, mm/s².
+    #[arg(long, default_value_t = 2000.0)]
+    pub acceleration: f64,
+    /// Write the program here instead of stdout.
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+}
+
+fn parse_axis(s: &str) -> Result<AxisId, String> {
+    s.parse()
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let profile = match &args.profile {
+        Some(path) => MachineProfile::load(path)?,
+        None => MachineProfile::twin_default(),
+    };
+    let lead = profile
+        .axis(args.axis)
+        .and_then(|a| a.screw.as_ref())
+        .map(|s| s.lead_mm)
+        .with_context(|| format!("the profile has no ball screw for axis {}", args.axis))?;
+    let recording = read_recording(&args.recording).context("cannot read recording")?;
+    let report = analyse_backlash(&recording, args.axis, lead)?;
+    println!(
+        "{} axis backlash: {:.1} µm (confidence {:.2}), from a {:.1} min test",
+        report.axis,
+        report.backlash_um,
+        report.confidence,
+        report.test_duration_s / 60.0
+    );
+    println!(
+        "{:>10} {:>10} {:>12} {:>20} {:>12}",
+        "feed", "motor rpm", "backlash µm", "95 % interval µm", "rise A (t)"
+    );
+    for b in &report.by_speed {
+        println!(
+            "{:>10.0} {:>10.1} {:>12.1} {:>9.1} – {:<8.1} {:>6.3} ({:.0})",
+            b.feed_mm_per_min,
+            b.speed_rpm,
+            b.backlash_um,
+            b.ci_low_um,
+            b.ci_high_um,
+            b.current_rise_a,
+            b.rise_t
+        );
+    }
+    if let Some(path) = &args.json {
+        crate::servosight_cli::write_json(path, &report)?;
+    }
+    Ok(())
+}
+
+pub fn run_program(args: ProgramArgs) -> anyhow::Result<()> {
+    let plan = BacklashTestPlan {
+        centre_mm: args.centre_mm,
+        min_increment_um: args.min_increment_um,
+        max_amplitude_um: args.max_amplitude_um,
+        feeds_mm_per_min: args.feeds.clone(),
+        ..BacklashTestPlan::default()
+    };
+    anyhow::ensure!(
+        plan.min_increment_um > 0.0 && plan.max_amplitude_um >= plan.min_increment_um,
+        "the amplitudes must run from a positive minimum increment up to the maximum"
+    );
+    anyhow::ensure!(
+        !plan.feeds_mm_per_min.is_empty() && plan.feeds_mm_per_min.iter().all(|f| *f > 0.0),
+        "feeds must be positive"
+    );
+    let program = nc_program(&plan, args.axis, args.acceleration);
+    let minutes = plan.duration_s(args.acceleration) / 60.0;
+    match &args.output {
+        Some(path) => {
+            std::fs::write(path, &program)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+            eprintln!(
+                "wrote {} ({minutes:.1} min of machine time)",
+                path.display()
+            );
+        }
+        None => print!("{program}"),
+    }
+    anyhow::ensure!(
+        minutes < 10.0,
+        "this test would take {minutes:.1} min: reduce the amplitudes or feeds"
+    );
+    Ok(())
+}

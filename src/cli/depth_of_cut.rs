@@ -1,0 +1,57 @@
+//! `servosight depth-of-cut`: the maximum rough-cut depth from the loads measured during cuts.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use servosight::estimators::depth_of_cut::recommend_depth_of_cut;
+use servosight::profile::MachineProfile;
+use servosight::signal::read_recording;
+
+/// Arguments of `servosight depth-of-cut`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A recording with some cuts at different depths (needs `cut_depth_mm`).
+    #[arg(long)]
+    pub recording: PathBuf,
+    /// Machine profile (ratings, margin); default: the twin's machine.
+    #[arg(long)]
+    pub profile: Option<PathBuf>,
+    /// Diameter being turned, mm (the cutting force acts on its radius).
+    #[arg(long, default_value_t = 80.0)]
+    pub workpiece_diameter_mm: f64,
+    /// Write the recommendation as JSON ("-" for stdout).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.workpiece_diameter_mm > 0.0,
+        "--workpiece-diameter-mm must be positive"
+    );
+    let profile = match &args.profile {
+        Some(path) => MachineProfile::load(path)?,
+        None => MachineProfile::twin_default(),
+    };
+    let recording = read_recording(&args.recording).context("cannot read recording")?;
+    let r = recommend_depth_of_cut(&profile, &recording, args.workpiece_diameter_mm)?;
+    println!(
+        "Maximum rough-cut depth: {:.1} mm at f = {:.2} mm/rev, {:.0} rpm — limited by {}",
+        r.recommended_depth_mm, r.feed_per_rev_mm, r.spindle_rpm, r.limiting_component
+    );
+    println!("  {}", r.reason);
+    println!(
+        "  {:<22} {:>10} {:>12} {:>12} {:>10} {:>6}",
+        "component", "idle", "per mm", "limit", "max depth", "R²"
+    );
+    for c in &r.components {
+        println!(
+            "  {:<22} {:>10.2} {:>12.2} {:>12.1} {:>7.2} mm {:>6.3}  {} ({})",
+            c.component, c.idle_load, c.load_per_mm, c.limit, c.max_depth_mm, c.r2, c.unit, c.why
+        );
+    }
+    if let Some(path) = &args.json {
+        crate::servosight_cli::write_json(path, &r)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,107 @@
+//! Runs the estimator pipeline over a recording and scores every estimate against its
+//! reference column, like the paper's Table 3.
+
+use crate::profile::MachineProfile;
+use crate::signal::Recording;
+
+use super::pipeline::{EstimateOutput, EstimatorPipeline, PipelineError};
+
+/// Every estimate over a recording, column by column.
+#[derive(Debug, Clone)]
+pub struct EstimateSeries {
+    /// What each column is.
+    pub outputs: Vec<EstimateOutput>,
+    /// One vector per output, one value per recording row.
+    pub values: Vec<Vec<f64>>,
+}
+
+/// Runs the profile's pipeline over every row of `recording`.
+pub fn run(
+    profile: &MachineProfile,
+    recording: &Recording,
+) -> Result<EstimateSeries, PipelineError> {
+    let mut pipeline = EstimatorPipeline::new(profile, recording.schema())?;
+    let outputs = pipeline.outputs();
+    let mut values = vec![Vec::with_capacity(recording.len()); outputs.len()];
+    let (mut row, mut out) = (
+        Vec::with_capacity(recording.schema().len()),
+        Vec::with_capacity(outputs.len()),
+    );
+    for i in 0..recording.len() {
+        recording.row_into(i, &mut row);
+        pipeline.update(&row);
+        pipeline.write_outputs(&mut out);
+        for (column, &v) in values.iter_mut().zip(&out) {
+            column.push(v);
+        }
+    }
+    Ok(EstimateSeries { outputs, values })
+}
+
+/// Accuracy of one estimate against its reference (DESIGN.md's contract).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AccuracyRow {
+    /// Estimate id (`nut_temp`, `straightness_h#3`, …).
+    pub estimate: String,
+    /// The reference column.
+    pub reference: String,
+    /// Samples compared.
+    pub n: usize,
+    /// 1 − SSE/SST of the reference: the share of the reference's variance the estimate explains.
+    pub r2: f64,
+    /// Root mean squared error, in the reference's unit.
+    pub rmse: f64,
+    /// Largest absolute error.
+    pub max_abs_error: f64,
+}
+
+/// Scores every estimate whose reference column exists in `recording`.
+pub fn accuracy(series: &EstimateSeries, recording: &Recording) -> Vec<AccuracyRow> {
+    series
+        .outputs
+        .iter()
+        .zip(&series.values)
+        .filter_map(|(output, estimate)| {
+            let reference = recording.try_column(&output.reference)?;
+            Some(score(&output.id, &output.reference, estimate, reference))
+        })
+        .collect()
+}
+
+/// R², RMSE and maximum error of `estimate` against `reference` (rows where either is not finite
+/// are skipped).
+pub fn score(id: &str, reference_name: &str, estimate: &[f64], reference: &[f64]) -> AccuracyRow {
+    let pairs: Vec<(f64, f64)> = estimate
+        .iter()
+        .zip(reference)
+        .filter(|(e, r)| e.is_finite() && r.is_finite())
+        .map(|(&e, &r)| (e, r))
+        .collect();
+    let n = pairs.len();
+    let mean = pairs.iter().map(|(_, r)| r).sum::<f64>() / n.max(1) as f64;
+    let sse: f64 = pairs.iter().map(|(e, r)| (r - e).powi(2)).sum();
+    let sst: f64 = pairs.iter().map(|(_, r)| (r - mean).powi(2)).sum();
+    AccuracyRow {
+        estimate: id.to_string(),
+        reference: reference_name.to_string(),
+        n,
+        r2: if sst > 0.0 { 1.0 - sse / sst } else { f64::NAN },
+        rmse: (sse / n.max(1) as f64).sqrt(),
+        max_abs_error: pairs.iter().map(|(e, r)| (r - e).abs()).fold(0.0, f64::max),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn score_matches_hand_computation() {
+        let row = score("x", "ref.x", &[1.0, 2.0, 4.0], &[1.0, 3.0, 5.0]);
+        // mean 3, SST = 4 + 0 + 4 = 8, SSE = 0 + 1 + 1 = 2.
+        assert_eq!(row.n, 3);
+        assert!((row.r2 - 0.75).abs() < 1e-12);
+        assert!((row.rmse - (2.0_f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert_eq!(row.max_abs_error, 1.0);
+    }
+}

@@ -1,0 +1,1021 @@
+//! Calibration, the paper's way: fit every estimator's model on a large simulation database,
+//! then let a few real experiments correct it.
+//!
+//! Models are fitted in the order they depend on each other: motor flange and torque ratios
+//! from raw servo signals; bearing and nut temperatures from the heat of the *estimated* split
+//! torques (so a model is fitted on the inputs it will see in service); straightness from the
+//! *estimated* temperatures; spindle elongation from the spindle's signals. Time constants of
+//! heat accumulation and whether the room temperature enters a model are chosen by time-blocked
+//! cross-validation (neighbouring samples are correlated, so random folds would flatter).
+//!
+//! Experiments correct the database the way the paper does it: each model's predictions on the
+//! experiment recordings are regressed on the measured values, y = a + b·ŷ; when that correction
+//! is significant (F-test, p < 0.01) it is folded into the model's coefficients.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
+
+use std::collections::BTreeMap;
+
+use crate::fit::{Design, FitError, OlsFit, blocked_cross_validation, ols};
+use crate::profile::{AxisKind, MachineProfile};
+use crate::signal::channel::AMBIENT;
+use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
+
+use super::models::{AxisModels, Calibration, ElongationModel, HeatModel, LinearModel};
+use super::pipeline::EstimatorPipeline;
+use super::streaming::{HeatAccumulator, TorqueSplitEstimator};
+
+/// Candidate heat-accumulation time constants, s.
+const HEAT_TAUS_S: &[f64] = &[300.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
+/// Candidate (fast, slow) time constants of the elongation model, s.
+const ELONGATION_TAUS_S: &[(f64, f64)] = &[
+    (600.0, 3600.0),
+    (900.0, 3600.0),
+    (900.0, 7200.0),
+    (1200.0, 5400.0),
+    (1800.0, 7200.0),
+];
+/// Blocks of the time-blocked cross-validation.
+const CV_FOLDS: usize = 5;
+/// Rows dropped on each side of a held-out block (at 1 Hz: 10 minutes).
+const CV_GAP_ROWS: usize = 600;
+/// Experiments correct a model only with at least this many reference samples.
+const MIN_EXPERIMENT_ROWS: usize = 30;
+
+/// Why calibration failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrationError {
+    /// No database recording.
+    #[error("no database recording given")]
+    NoDatabase,
+    /// A regression failed.
+    #[error("{estimate}: {source}")]
+    Fit {
+        /// The model being fitted.
+        estimate: String,
+        /// The regression's error.
+        #[source]
+        source: FitError,
+    },
+    /// A recording lacks what a model needs.
+    #[error("{0}")]
+    Recording(#[from] crate::signal::RecordingError),
+    /// The fitted models do not form a working pipeline.
+    #[error("{0}")]
+    Pipeline(#[from] super::pipeline::PipelineError),
+    /// The database gives nothing to fit for a model the profile needs.
+    #[error("{estimate}: {message}")]
+    NoData {
+        /// The model.
+        estimate: String,
+        /// Why.
+        message: String,
+    },
+}
+
+/// One fitted model in the calibration report (DESIGN.md's contract plus the out-of-sample R²).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ModelReport {
+    /// Which estimate (`motor_flange_temp`, `straightness_h#3`, …) and axis.
+    pub estimate: String,
+    /// The fitted equation with its coefficients.
+    pub equation: String,
+    /// Samples.
+    pub n: usize,
+    /// In-sample R².
+    pub r2: f64,
+    /// F statistic (Eq. 3).
+    pub f_statistic: f64,
+    /// Its p-value.
+    pub f_p_value: f64,
+    /// Time-blocked cross-validated R².
+    pub cv_r2: f64,
+    /// How the model form (time constants, optional terms) was chosen: on the `experiments`
+    /// or by `blocked_cv` on the database.
+    pub selected_by: &'static str,
+    /// The R² that chose it (on the experiments, or cross-validated).
+    pub selection_r2: f64,
+    /// The correction the experiments made, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub experiment_correction: Option<ExperimentCorrection>,
+}
+
+/// How experiments corrected a model: measured = offset + gain · database prediction.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ExperimentCorrection {
+    /// Experiment samples used.
+    pub n: usize,
+    /// Offset a.
+    pub offset: f64,
+    /// Gain b.
+    pub gain: f64,
+    /// p-value of the F-test of (a, b) ≠ (0, 1).
+    pub p_value: f64,
+    /// RMSE on the experiments before the correction.
+    pub rmse_before: f64,
+    /// RMSE on the experiments after it.
+    pub rmse_after: f64,
+    /// Whether it was applied (significant at p < 0.01).
+    pub applied: bool,
+}
+
+/// The calibration report.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CalibrationReport {
+    /// One entry per fitted model.
+    pub models: Vec<ModelReport>,
+}
+
+/// Fits every model the profile's axes need. Returns the calibration (to store in the profile)
+/// and the report.
+pub fn calibrate(
+    profile: &MachineProfile,
+    database: &[Recording],
+    experiments: &[Recording],
+) -> Result<(Calibration, CalibrationReport), CalibrationError> {
+    let first = database.first().ok_or(CalibrationError::NoDatabase)?;
+    let fitted_rate_hz = first.sample_rate_hz().unwrap_or(1.0);
+    let mut calibration = Calibration {
+        fitted_rate_hz,
+        database: database.iter().map(|r| r.source().to_string()).collect(),
+        experiments: experiments.iter().map(|r| r.source().to_string()).collect(),
+        axes: BTreeMap::new(),
+    };
+    let mut report = CalibrationReport { models: Vec::new() };
+    let has_ambient = database.iter().all(|r| r.try_column(AMBIENT).is_some());
+
+    // Stage 1: models of raw servo signals.
+    for (&axis, axis_profile) in &profile.axes {
+        let mut models = AxisModels::default();
+        match axis_profile.kind {
+            AxisKind::Feed => {
+                let target = reference_column(axis, "motor_flange_temp_C", None);
+                if database.iter().all(|r| r.try_column(&target).is_some()) {
+                    let stator = axis_column(axis, Quantity::StatorTemp);
+                    let fitted = fit_best(
+                        &format!("{axis}.motor_flange_temp"),
+                        "T_flange",
+                        database,
+                        experiments,
+                        &target,
+                        &|_, _, r| {
+                            let base = vec![(
+                                "stator".to_string(),
+                                r.column_for(&stator, "the motor flange model")?.to_vec(),
+                            )];
+                            with_room_variant(base, r, has_ambient)
+                        },
+                    )?;
+                    models.motor_flange = Some(fitted.model.clone());
+                    report.models.push(fitted.report);
+                }
+                if let Some((nut_bearing, back_front, reports)) = fit_torque_ratios(axis, database)?
+                {
+                    models.nut_bearing_ratio = Some(nut_bearing);
+                    models.back_front_ratio = Some(back_front);
+                    report.models.extend(reports);
+                }
+            }
+            AxisKind::Spindle => {
+                if let Some((model, model_report)) =
+                    fit_elongation(axis, database, experiments, has_ambient)?
+                {
+                    models.elongation = Some(model);
+                    report.models.push(model_report);
+                }
+            }
+        }
+        calibration.axes.insert(axis, models);
+    }
+
+    // Stage 2: component temperatures from the heat of the estimated split torques.
+    for (&axis, axis_profile) in &profile.axes {
+        if axis_profile.kind != AxisKind::Feed {
+            continue;
+        }
+        let Some(models) = calibration.axes.get(&axis) else {
+            continue;
+        };
+        let (Some(nb), Some(bf)) = (&models.nut_bearing_ratio, &models.back_front_ratio) else {
+            continue;
+        };
+        let split =
+            TorqueSplitEstimator::new(nb, bf).map_err(|message| CalibrationError::NoData {
+                estimate: format!("{axis}.torque_split"),
+                message,
+            })?;
+        let mut fitted = Vec::new();
+        for (component, label) in [
+            (Component::FrontBearing, "front_bearing_temp"),
+            (Component::BackBearing, "back_bearing_temp"),
+            (Component::Nut, "nut_temp"),
+        ] {
+            let target = reference_column(axis, &format!("{label}_C"), None);
+            if !database.iter().all(|r| r.try_column(&target).is_some()) {
+                continue;
+            }
+            let lead_mm = axis_profile.screw.as_ref().map_or(1.0, |s| s.lead_mm);
+            let (model, model_report) = fit_heat_model(
+                HeatFit {
+                    axis,
+                    label,
+                    component,
+                    split: &split,
+                    lead_mm,
+                    target: &target,
+                    has_ambient,
+                },
+                database,
+                experiments,
+            )?;
+            fitted.push((component, model));
+            report.models.push(model_report);
+        }
+        let models = calibration.axes.entry(axis).or_default();
+        for (component, model) in fitted {
+            match component {
+                Component::FrontBearing => models.front_bearing_temp = Some(model),
+                Component::BackBearing => models.back_bearing_temp = Some(model),
+                Component::Nut => models.nut_temp = Some(model),
+            }
+        }
+    }
+    apply_experiments(
+        profile,
+        &mut calibration,
+        &mut report,
+        experiments,
+        Stage::Components,
+    )?;
+
+    // Stage 3: straightness from the estimated temperatures.
+    for (&axis, axis_profile) in &profile.axes {
+        let Some(screw) = &axis_profile.screw else {
+            continue;
+        };
+        let nodes = screw.node_positions_mm.len();
+        let first_ref = reference_column(axis, "straightness_h_um", Some(1));
+        if !database.iter().all(|r| r.try_column(&first_ref).is_some()) {
+            continue;
+        }
+        let estimate_all = |recordings: &[Recording]| {
+            recordings
+                .iter()
+                .map(|r| estimated_temperatures(profile, &calibration, r, axis))
+                .collect::<Result<Vec<_>, _>>()
+        };
+        let estimated = estimate_all(database)?;
+        let estimated_experiments = estimate_all(experiments)?;
+        let (mut h, mut v) = (Vec::new(), Vec::new());
+        for k in 1..=nodes {
+            for (hv, out) in [("h", &mut h), ("v", &mut v)] {
+                let target = reference_column(axis, &format!("straightness_{hv}_um"), Some(k));
+                let label = format!("{axis}.straightness_{hv}#{k}");
+                let symbol = format!("δ_{}{k}", hv.to_uppercase());
+                let fitted = fit_best(
+                    &label,
+                    &symbol,
+                    database,
+                    experiments,
+                    &target,
+                    &|side, index, r| {
+                        let temps = match side {
+                            Side::Database => &estimated[index],
+                            Side::Experiment => &estimated_experiments[index],
+                        };
+                        let mut columns = Vec::new();
+                        for (name, values) in [
+                            ("front", &temps.front),
+                            ("back", &temps.back),
+                            ("motor", &temps.motor),
+                        ] {
+                            columns.push((name.to_string(), values.clone()));
+                            columns.push((
+                                format!("{name}^2"),
+                                values.iter().map(|t| t * t).collect(),
+                            ));
+                            columns.push((
+                                format!("{name}^3"),
+                                values.iter().map(|t| t * t * t).collect(),
+                            ));
+                        }
+                        with_room_variant(columns, r, has_ambient)
+                    },
+                )?;
+                out.push(fitted.model);
+                report.models.push(fitted.report);
+            }
+        }
+        let models = calibration.axes.entry(axis).or_default();
+        models.straightness_h = h;
+        models.straightness_v = v;
+    }
+    apply_experiments(
+        profile,
+        &mut calibration,
+        &mut report,
+        experiments,
+        Stage::Straightness,
+    )?;
+    Ok((calibration, report))
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Component {
+    FrontBearing,
+    BackBearing,
+    Nut,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Stage {
+    Components,
+    Straightness,
+}
+
+/// A fitted model and its report line.
+struct Fitted {
+    model: LinearModel,
+    report: ModelReport,
+    cv_r2: f64,
+}
+
+/// Which recordings a candidate-building closure is asked about.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Side {
+    Database,
+    Experiment,
+}
+
+/// Named regressor columns.
+type Columns = Vec<(String, Vec<f64>)>;
+
+/// Builds candidate column sets for one recording (same names and order for every recording).
+type Candidates<'a> =
+    dyn Fn(Side, usize, &Recording) -> Result<Vec<Columns>, CalibrationError> + 'a;
+
+/// Fits each candidate column set on the stacked database and keeps the one that predicts best
+/// where it matters: on the experiments (real data the database never saw) when they carry the
+/// target, otherwise by time-blocked cross-validation on the database.
+fn fit_best(
+    estimate: &str,
+    symbol: &str,
+    database: &[Recording],
+    experiments: &[Recording],
+    target: &str,
+    candidates: &Candidates<'_>,
+) -> Result<Fitted, CalibrationError> {
+    let mut per_recording = Vec::with_capacity(database.len());
+    let mut y = Vec::new();
+    for (index, recording) in database.iter().enumerate() {
+        per_recording.push(candidates(Side::Database, index, recording)?);
+        y.extend_from_slice(recording.column_for(target, estimate)?);
+    }
+    let mut per_experiment = Vec::new();
+    let mut y_experiment = Vec::new();
+    for (index, recording) in experiments.iter().enumerate() {
+        if let Some(values) = recording.try_column(target) {
+            per_experiment.push(candidates(Side::Experiment, index, recording)?);
+            y_experiment.extend_from_slice(values);
+        }
+    }
+    let count = per_recording.first().map_or(0, Vec::len);
+    let mut best: Option<(f64, Fitted)> = None;
+    let mut last_error = None;
+    for c in 0..count {
+        let columns = stack(&per_recording, c);
+        // A candidate whose terms are collinear on this database (the room term can be a
+        // combination of estimated temperatures) is not an error while another one fits.
+        let mut fitted = match fit_columns(estimate, symbol, target, y.clone(), columns) {
+            Ok(fitted) => fitted,
+            Err(e) => {
+                last_error = Some(e);
+                continue;
+            }
+        };
+        let score = if y_experiment.len() >= MIN_EXPERIMENT_ROWS {
+            let columns = stack(&per_experiment, c);
+            let predicted = predict(&fitted.model.coefficients, &columns, y_experiment.len());
+            fitted.report.selected_by = "experiments";
+            r_squared(&y_experiment, &predicted)
+        } else {
+            fitted.cv_r2
+        };
+        fitted.report.selection_r2 = score;
+        if best.as_ref().is_none_or(|(b, _)| score > *b + 1e-4) {
+            best = Some((score, fitted));
+        }
+    }
+    match (best, last_error) {
+        (Some((_, fitted)), _) => Ok(fitted),
+        (None, Some(error)) => Err(error),
+        (None, None) => Err(CalibrationError::NoData {
+            estimate: estimate.to_string(),
+            message: "no candidate model".into(),
+        }),
+    }
+}
+
+/// c₀ + Σ cᵢ·xᵢ for every row.
+fn predict(coefficients: &[f64], columns: &[(String, Vec<f64>)], rows: usize) -> Vec<f64> {
+    (0..rows)
+        .map(|i| {
+            coefficients[0]
+                + columns
+                    .iter()
+                    .zip(&coefficients[1..])
+                    .map(|((_, x), c)| c * x[i])
+                    .sum::<f64>()
+        })
+        .collect()
+}
+
+/// 1 − SSE/SST.
+fn r_squared(y: &[f64], predicted: &[f64]) -> f64 {
+    let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
+    let sse: f64 = y.iter().zip(predicted).map(|(a, b)| (a - b).powi(2)).sum();
+    let sst: f64 = y.iter().map(|a| (a - mean).powi(2)).sum();
+    if sst > 0.0 { 1.0 - sse / sst } else { f64::NAN }
+}
+
+/// The candidates `[base]` and, when the room temperature is recorded, `[base + ambient]`.
+fn with_room_variant(
+    base: Vec<(String, Vec<f64>)>,
+    recording: &Recording,
+    has_ambient: bool,
+) -> Result<Vec<Columns>, CalibrationError> {
+    let mut candidates = vec![base.clone()];
+    if has_ambient {
+        let mut with_room = base;
+        with_room.push(("ambient".to_string(), recording.column(AMBIENT)?.to_vec()));
+        candidates.push(with_room);
+    }
+    Ok(candidates)
+}
+
+/// Concatenates candidate `c` of every recording, column by column.
+fn stack(per_recording: &[Vec<Columns>], c: usize) -> Columns {
+    let mut columns: Vec<(String, Vec<f64>)> = per_recording[0][c]
+        .iter()
+        .map(|(name, _)| (name.clone(), Vec::new()))
+        .collect();
+    for candidates in per_recording {
+        for (slot, (_, values)) in columns.iter_mut().zip(&candidates[c]) {
+            slot.1.extend_from_slice(values);
+        }
+    }
+    columns
+}
+
+fn fit_columns(
+    estimate: &str,
+    symbol: &str,
+    target: &str,
+    y: Vec<f64>,
+    columns: Vec<(String, Vec<f64>)>,
+) -> Result<Fitted, CalibrationError> {
+    let err = |source: FitError| CalibrationError::Fit {
+        estimate: estimate.to_string(),
+        source,
+    };
+    let design = Design::from_columns(target, y, columns).map_err(err)?;
+    let fit = ols(&design).map_err(err)?;
+    let folds = CV_FOLDS.min(design.n_rows() / 10).max(2);
+    let gap = CV_GAP_ROWS.min(design.n_rows() / (4 * folds));
+    let cv_r2 = blocked_cross_validation(&design, folds, gap)
+        .map_err(err)?
+        .r2;
+    let model = linear_model(symbol, &fit);
+    let report = ModelReport {
+        estimate: estimate.to_string(),
+        equation: model.equation.clone(),
+        n: fit.n,
+        r2: fit.r2,
+        f_statistic: fit.f_statistic,
+        f_p_value: fit.f_p_value,
+        cv_r2,
+        selected_by: "blocked_cv",
+        selection_r2: cv_r2,
+        experiment_correction: None,
+    };
+    Ok(Fitted {
+        model,
+        report,
+        cv_r2,
+    })
+}
+
+fn linear_model(symbol: &str, fit: &OlsFit) -> LinearModel {
+    let mut equation = format!("{symbol} =");
+    for (i, c) in fit.coefficients.iter().enumerate() {
+        let sign = if c.estimate < 0.0 {
+            "−"
+        } else if i == 0 {
+            ""
+        } else {
+            "+"
+        };
+        let value = format!("{:.6e}", c.estimate.abs());
+        if c.term == "const" {
+            equation.push_str(&format!(" {sign}{value}"));
+        } else {
+            equation.push_str(&format!(" {sign} {value}·{}", c.term));
+        }
+    }
+    LinearModel {
+        equation,
+        terms: fit.coefficients.iter().map(|c| c.term.clone()).collect(),
+        coefficients: fit.estimates(),
+        r2: fit.r2,
+        n: fit.n,
+        f_statistic: fit.f_statistic,
+        f_p_value: fit.f_p_value,
+        rmse: fit.rmse,
+    }
+}
+
+/// Eq. 8: the nut-to-bearing and back-to-front torque ratios as cubics in the motor torque,
+/// fitted on moving samples where the reference torques are large enough for a ratio to mean
+/// something.
+fn fit_torque_ratios(
+    axis: AxisId,
+    database: &[Recording],
+) -> Result<Option<(LinearModel, LinearModel, Vec<ModelReport>)>, CalibrationError> {
+    let names = [
+        reference_column(axis, "front_bearing_torque_Nm", None),
+        reference_column(axis, "back_bearing_torque_Nm", None),
+        reference_column(axis, "nut_torque_Nm", None),
+    ];
+    if !database
+        .iter()
+        .all(|r| names.iter().all(|n| r.try_column(n).is_some()))
+    {
+        return Ok(None);
+    }
+    let mut torque = Vec::new();
+    let (mut r_nb, mut r_bf) = (Vec::new(), Vec::new());
+    for r in database {
+        let motor = r.column_for(&axis_column(axis, Quantity::Torque), "the torque split")?;
+        let speed = r.column_for(&axis_column(axis, Quantity::Speed), "the torque split")?;
+        let front = r.column(&names[0])?;
+        let back = r.column(&names[1])?;
+        let nut = r.column(&names[2])?;
+        let max_speed = speed.iter().fold(0.0_f64, |m, s| m.max(s.abs()));
+        for i in 0..r.len() {
+            let bearing = front[i] + back[i];
+            if speed[i].abs() > 0.02 * max_speed && bearing.abs() > 0.01 && front[i].abs() > 0.005 {
+                torque.push(motor[i]);
+                r_nb.push(nut[i] / bearing);
+                r_bf.push(back[i] / front[i]);
+            }
+        }
+    }
+    if torque.len() < 20 {
+        return Err(CalibrationError::NoData {
+            estimate: format!("{axis}.torque_split"),
+            message: format!(
+                "only {} moving samples with reference torques",
+                torque.len()
+            ),
+        });
+    }
+    let cubic = |t: &[f64]| {
+        vec![
+            ("torque".to_string(), t.to_vec()),
+            ("torque^2".to_string(), t.iter().map(|v| v * v).collect()),
+            (
+                "torque^3".to_string(),
+                t.iter().map(|v| v * v * v).collect(),
+            ),
+        ]
+    };
+    let nb = fit_columns(
+        &format!("{axis}.nut_bearing_torque_ratio"),
+        "r_BN",
+        "r_BN",
+        r_nb,
+        cubic(&torque),
+    )?;
+    let bf = fit_columns(
+        &format!("{axis}.back_front_torque_ratio"),
+        "r_BF",
+        "r_BF",
+        r_bf,
+        cubic(&torque),
+    )?;
+    Ok(Some((nb.model, bf.model, vec![nb.report, bf.report])))
+}
+
+/// The drag-heat and load-heat input series of a component (see
+/// [`super::streaming::ComponentThermalEstimator`]), from the estimated split torque and the
+/// encoder travel speed, exactly as the streaming estimator computes them.
+fn component_heat_inputs(
+    split: &TorqueSplitEstimator,
+    component: Component,
+    recording: &Recording,
+    axis: AxisId,
+    lead_mm: f64,
+    purpose: &str,
+) -> Result<(Vec<f64>, Vec<f64>), CalibrationError> {
+    let torque = recording.column_for(&axis_column(axis, Quantity::Torque), purpose)?;
+    let speed = recording.column_for(&axis_column(axis, Quantity::Speed), purpose)?;
+    let position = recording.try_column(&axis_column(axis, Quantity::Position));
+    let time = recording.time();
+    let mut travel = super::pipeline::TravelSpeed::new(lead_mm);
+    let (mut drag, mut load) = (
+        Vec::with_capacity(time.len()),
+        Vec::with_capacity(time.len()),
+    );
+    for i in 0..time.len() {
+        let dt = if i == 0 {
+            0.0
+        } else {
+            (time[i] - time[i - 1]).max(0.0)
+        };
+        let n = travel.update(position.map(|p| p[i]), speed[i], dt);
+        let s = split.update(torque[i]);
+        let tau = match component {
+            Component::FrontBearing => s.front_bearing_Nm,
+            Component::BackBearing => s.back_bearing_Nm,
+            Component::Nut => s.nut_Nm,
+        };
+        let (d, l) = super::streaming::heat_inputs(tau, n);
+        drag.push(d);
+        load.push(l);
+    }
+    Ok((drag, load))
+}
+
+/// Accumulates `input` with time constant `tau_s` over the recording's own time steps.
+fn accumulate(time: &[f64], input: &[f64], tau_s: f64) -> Vec<f64> {
+    let mut acc = HeatAccumulator::new(tau_s);
+    let mut previous = time.first().copied().unwrap_or(0.0);
+    time.iter()
+        .zip(input)
+        .map(|(&t, &u)| {
+            let dt = (t - previous).max(0.0);
+            previous = t;
+            acc.update(u, dt)
+        })
+        .collect()
+}
+
+/// What a heat-model fit is about.
+struct HeatFit<'a> {
+    axis: AxisId,
+    label: &'a str,
+    component: Component,
+    split: &'a TorqueSplitEstimator,
+    lead_mm: f64,
+    target: &'a str,
+    has_ambient: bool,
+}
+
+/// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator [+ c_room·T_room] + c_H·H(τ)
+/// [+ c_L·H_load(τ)], with τ and the optional terms chosen on the experiments (or by blocked
+/// cross-validation).
+fn fit_heat_model(
+    fit: HeatFit<'_>,
+    database: &[Recording],
+    experiments: &[Recording],
+) -> Result<(HeatModel, ModelReport), CalibrationError> {
+    let estimate = format!("{}.{}", fit.axis, fit.label);
+    let inputs_of = |recordings: &[Recording]| {
+        recordings
+            .iter()
+            .map(|r| {
+                component_heat_inputs(
+                    fit.split,
+                    fit.component,
+                    r,
+                    fit.axis,
+                    fit.lead_mm,
+                    &estimate,
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let db_inputs = inputs_of(database)?;
+    let experiment_inputs = inputs_of(experiments)?;
+    let stator_name = axis_column(fit.axis, Quantity::StatorTemp);
+    let mut best: Option<(f64, f64, Fitted)> = None;
+    for &tau in HEAT_TAUS_S {
+        let fitted = fit_best(
+            &estimate,
+            "T",
+            database,
+            experiments,
+            fit.target,
+            &|side, index, r| {
+                let (drag, load) = match side {
+                    Side::Database => &db_inputs[index],
+                    Side::Experiment => &experiment_inputs[index],
+                };
+                let stator = r.column_for(&stator_name, &estimate)?.to_vec();
+                let heat = accumulate(r.time(), drag, tau);
+                let load_heat = accumulate(r.time(), load, tau);
+                let drag_only = vec![
+                    ("stator".to_string(), stator.clone()),
+                    ("heat".to_string(), heat.clone()),
+                ];
+                let both = vec![
+                    ("stator".to_string(), stator),
+                    ("heat".to_string(), heat),
+                    ("load_heat".to_string(), load_heat),
+                ];
+                let mut candidates = with_room_variant(drag_only, r, fit.has_ambient)?;
+                candidates.extend(with_room_variant(both, r, fit.has_ambient)?);
+                Ok(candidates)
+            },
+        )?;
+        let score = fitted.report.selection_r2;
+        if best.as_ref().is_none_or(|(b, _, _)| score > *b + 1e-4) {
+            best = Some((score, tau, fitted));
+        }
+    }
+    let (_, tau, fitted) = best.ok_or_else(|| CalibrationError::NoData {
+        estimate: estimate.clone(),
+        message: "no time constant could be fitted".into(),
+    })?;
+    let rate = database[0].sample_rate_hz().unwrap_or(1.0);
+    let mut report = fitted.report;
+    report.equation = format!(
+        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag) and n·|τ| (load), τ = {tau} s",
+        report.equation
+    );
+    Ok((
+        HeatModel {
+            tau_s: tau,
+            c_bh: HeatAccumulator::c_bh_at_rate(tau, rate),
+            temperature: fitted.model,
+        },
+        report,
+    ))
+}
+
+/// Eq. 15 for a spindle, with the two heat-accumulation terms' time constants (and the room
+/// term) chosen by blocked cross-validation.
+fn fit_elongation(
+    axis: AxisId,
+    database: &[Recording],
+    experiments: &[Recording],
+    has_ambient: bool,
+) -> Result<Option<(ElongationModel, ModelReport)>, CalibrationError> {
+    let target = reference_column(axis, "elongation_um", None);
+    if !database.iter().all(|r| r.try_column(&target).is_some()) {
+        return Ok(None);
+    }
+    let estimate = format!("{axis}.spindle_elongation");
+    let mut best: Option<((f64, f64), Fitted)> = None;
+    for &(fast, slow) in ELONGATION_TAUS_S {
+        let fitted = fit_best(
+            &estimate,
+            "δ_R",
+            database,
+            experiments,
+            &target,
+            &|_, _, r| {
+                let stator = r.column_for(&axis_column(axis, Quantity::StatorTemp), &estimate)?;
+                let speed = r.column_for(&axis_column(axis, Quantity::Speed), &estimate)?;
+                let load = r.column_for(&axis_column(axis, Quantity::Load), &estimate)?;
+                let krpm: Vec<f64> = speed.iter().map(|s| s.abs() / 1000.0).collect();
+                let first = stator.first().copied().unwrap_or(0.0);
+                let base = vec![
+                    (
+                        "delta_stator".to_string(),
+                        stator.iter().map(|t| t - first).collect(),
+                    ),
+                    ("speed".to_string(), krpm.clone()),
+                    ("load".to_string(), load.iter().map(|l| l.abs()).collect()),
+                    ("heat_fast".to_string(), accumulate(r.time(), &krpm, fast)),
+                    ("heat_slow".to_string(), accumulate(r.time(), &krpm, slow)),
+                ];
+                with_room_variant(base, r, has_ambient)
+            },
+        )?;
+        if best
+            .as_ref()
+            .is_none_or(|(_, b)| fitted.report.selection_r2 > b.report.selection_r2 + 1e-4)
+        {
+            best = Some(((fast, slow), fitted));
+        }
+    }
+    Ok(best.map(|((fast, slow), fitted)| {
+        let mut report = fitted.report;
+        report.equation = format!(
+            "{}; heat terms: speed accumulated with τ = {fast} s and {slow} s",
+            report.equation
+        );
+        (
+            ElongationModel {
+                fast_tau_s: fast,
+                slow_tau_s: slow,
+                model: fitted.model,
+            },
+            report,
+        )
+    }))
+}
+
+/// Estimated front-bearing, back-bearing and motor-flange temperatures over a recording, from
+/// the models fitted so far.
+struct EstimatedTemperatures {
+    front: Vec<f64>,
+    back: Vec<f64>,
+    motor: Vec<f64>,
+}
+
+fn estimated_temperatures(
+    profile: &MachineProfile,
+    calibration: &Calibration,
+    recording: &Recording,
+    axis: AxisId,
+) -> Result<EstimatedTemperatures, CalibrationError> {
+    let mut partial = profile.clone();
+    let mut stage = calibration.clone();
+    // Straightness models are being fitted; the pipeline must not need them yet.
+    for models in stage.axes.values_mut() {
+        models.straightness_h.clear();
+        models.straightness_v.clear();
+    }
+    partial.calibration = Some(stage);
+    let mut pipeline = EstimatorPipeline::new(&partial, recording.schema())?;
+    let mut row = Vec::with_capacity(recording.schema().len());
+    let mut out = EstimatedTemperatures {
+        front: Vec::with_capacity(recording.len()),
+        back: Vec::with_capacity(recording.len()),
+        motor: Vec::with_capacity(recording.len()),
+    };
+    for i in 0..recording.len() {
+        recording.row_into(i, &mut row);
+        pipeline.update(&row);
+        let e = pipeline
+            .feed_axis(axis)
+            .ok_or_else(|| CalibrationError::NoData {
+                estimate: format!("{axis}.straightness"),
+                message: "no temperature models for this axis".into(),
+            })?;
+        if e.front_bearing_C.is_nan() || e.back_bearing_C.is_nan() || e.motor_flange_C.is_nan() {
+            return Err(CalibrationError::NoData {
+                estimate: format!("{axis}.straightness"),
+                message:
+                    "straightness needs front-bearing, back-bearing and motor temperature models"
+                        .into(),
+            });
+        }
+        out.front.push(e.front_bearing_C);
+        out.back.push(e.back_bearing_C);
+        out.motor.push(e.motor_flange_C);
+    }
+    Ok(out)
+}
+
+/// Lets the experiments correct the models of one stage: for every estimate the pipeline
+/// produces whose reference the experiments have, fit measured = a + b·predicted and fold it
+/// into the model when significant.
+fn apply_experiments(
+    profile: &MachineProfile,
+    calibration: &mut Calibration,
+    report: &mut CalibrationReport,
+    experiments: &[Recording],
+    stage: Stage,
+) -> Result<(), CalibrationError> {
+    if experiments.is_empty() {
+        return Ok(());
+    }
+    let mut current = profile.clone();
+    current.calibration = Some(calibration.clone());
+    // Collect (predicted, measured) per estimate over every experiment.
+    let mut pairs: BTreeMap<String, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+    for recording in experiments {
+        let series = super::accuracy::run(&current, recording)?;
+        for (output, values) in series.outputs.iter().zip(&series.values) {
+            let Some(measured) = recording.try_column(&output.reference) else {
+                continue;
+            };
+            let entry = pairs.entry(output.column.clone()).or_default();
+            entry.0.extend_from_slice(values);
+            entry.1.extend_from_slice(measured);
+        }
+    }
+    for (column, (predicted, measured)) in pairs {
+        let Some((axis, slot)) = model_slot(&column, stage) else {
+            continue;
+        };
+        if predicted.len() < MIN_EXPERIMENT_ROWS {
+            continue;
+        }
+        let n = predicted.len() as f64;
+        let sse_before: f64 = predicted
+            .iter()
+            .zip(&measured)
+            .map(|(p, m)| (m - p).powi(2))
+            .sum();
+        let design = Design::from_columns(
+            "measured",
+            measured.clone(),
+            vec![("predicted".into(), predicted.clone())],
+        );
+        let Ok(design) = design else { continue };
+        let Ok(fit) = ols(&design) else { continue };
+        let (offset, gain) = (fit.coefficients[0].estimate, fit.coefficients[1].estimate);
+        let sse_after = fit.ss_error;
+        // F-test of the two correction parameters against "no correction" (a = 0, b = 1).
+        let f = ((sse_before - sse_after) / 2.0) / (sse_after / (n - 2.0)).max(f64::MIN_POSITIVE);
+        let p_value = crate::fit::distributions::f_survival(f.max(0.0), 2.0, n - 2.0);
+        let applied = p_value < 0.01 && gain.is_finite() && gain > 0.0;
+        let correction = ExperimentCorrection {
+            n: predicted.len(),
+            offset,
+            gain,
+            p_value,
+            rmse_before: (sse_before / n).sqrt(),
+            rmse_after: (sse_after / n).sqrt(),
+            applied,
+        };
+        if applied {
+            let models = calibration.axes.entry(axis).or_default();
+            if let Some(model) = slot.model_mut(models) {
+                for c in model.coefficients.iter_mut() {
+                    *c *= gain;
+                }
+                model.coefficients[0] += offset;
+                model.equation = format!(
+                    "{} (corrected by experiments: {offset:+.4} + {gain:.4}×)",
+                    model.equation
+                );
+            }
+        }
+        if let Some(entry) = report
+            .models
+            .iter_mut()
+            .find(|m| slot.matches(axis, &m.estimate))
+        {
+            entry.experiment_correction = Some(correction);
+        }
+    }
+    Ok(())
+}
+
+/// Which stored model an estimate column belongs to.
+#[derive(Debug, Clone, Copy)]
+enum ModelSlot {
+    Flange,
+    Front,
+    Back,
+    Nut,
+    StraightnessH(usize),
+    StraightnessV(usize),
+    Elongation,
+}
+
+impl ModelSlot {
+    fn model_mut(self, m: &mut AxisModels) -> Option<&mut LinearModel> {
+        match self {
+            ModelSlot::Flange => m.motor_flange.as_mut(),
+            ModelSlot::Front => m.front_bearing_temp.as_mut().map(|h| &mut h.temperature),
+            ModelSlot::Back => m.back_bearing_temp.as_mut().map(|h| &mut h.temperature),
+            ModelSlot::Nut => m.nut_temp.as_mut().map(|h| &mut h.temperature),
+            ModelSlot::StraightnessH(k) => m.straightness_h.get_mut(k - 1),
+            ModelSlot::StraightnessV(k) => m.straightness_v.get_mut(k - 1),
+            ModelSlot::Elongation => m.elongation.as_mut().map(|e| &mut e.model),
+        }
+    }
+
+    fn matches(self, axis: AxisId, estimate: &str) -> bool {
+        let name = match self {
+            ModelSlot::Flange => "motor_flange_temp".to_string(),
+            ModelSlot::Front => "front_bearing_temp".into(),
+            ModelSlot::Back => "back_bearing_temp".into(),
+            ModelSlot::Nut => "nut_temp".into(),
+            ModelSlot::StraightnessH(k) => format!("straightness_h#{k}"),
+            ModelSlot::StraightnessV(k) => format!("straightness_v#{k}"),
+            ModelSlot::Elongation => "spindle_elongation".into(),
+        };
+        estimate == format!("{axis}.{name}")
+    }
+}
+
+/// Maps an estimate column (`est.X.nut_temp_C`) to its model, if it belongs to `stage`.
+fn model_slot(column: &str, stage: Stage) -> Option<(AxisId, ModelSlot)> {
+    let rest = column.strip_prefix("est.")?;
+    let (axis, quantity) = rest.split_once('.')?;
+    let axis: AxisId = axis.parse().ok()?;
+    let slot = match (quantity, stage) {
+        ("motor_flange_temp_C", Stage::Components) => ModelSlot::Flange,
+        ("front_bearing_temp_C", Stage::Components) => ModelSlot::Front,
+        ("back_bearing_temp_C", Stage::Components) => ModelSlot::Back,
+        ("nut_temp_C", Stage::Components) => ModelSlot::Nut,
+        ("elongation_um", Stage::Components) => ModelSlot::Elongation,
+        (q, Stage::Straightness) => {
+            let (name, node) = q.split_once('#')?;
+            let k: usize = node.parse().ok()?;
+            match name {
+                "straightness_h_um" => ModelSlot::StraightnessH(k),
+                "straightness_v_um" => ModelSlot::StraightnessV(k),
+                _ => return None,
+            }
+        }
+        _ => return None,
+    };
+    Some((axis, slot))
+}

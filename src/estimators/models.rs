@@ -1,0 +1,303 @@
+//! Fitted models as the machine profile stores them, and their fast evaluation.
+//!
+//! A model is a list of named terms with coefficients. Each estimator has a fixed feature
+//! vector (`FLANGE_FEATURES`, `HEAT_FEATURES`, …); binding a model to it turns term names into
+//! indices once, so evaluating it per frame is a handful of multiply-adds with no lookups and no
+//! allocation.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::signal::AxisId;
+
+/// Motor flange temperature (Eq. 7): constant, stator temperature, room temperature.
+pub const FLANGE_FEATURES: &[&str] = &["const", "stator", "ambient"];
+/// Torque ratios (Eq. 8): a cubic in the motor torque.
+pub const RATIO_FEATURES: &[&str] = &["const", "torque", "torque^2", "torque^3"];
+/// Bearing and nut temperature (Eqs. 9–12): constant, stator (the initial temperature),
+/// room, accumulated drag heat (∝ speed: the preload drag torque is nearly constant) and
+/// accumulated load heat (∝ speed × the component's estimated torque).
+pub const HEAT_FEATURES: &[&str] = &["const", "stator", "ambient", "heat", "load_heat"];
+/// Straightness per node (Eqs. 13–14): cubics in front-bearing, back-bearing and motor
+/// temperatures, and the room.
+pub const STRAIGHTNESS_FEATURES: &[&str] = &[
+    "const", "front", "front^2", "front^3", "back", "back^2", "back^3", "motor", "motor^2",
+    "motor^3", "ambient",
+];
+/// Spindle elongation (Eq. 15): ΔT of the stator since tool calibration, speed, load, plus
+/// heat accumulated over a short and a long time constant (Eq. 10's form applied to the
+/// spindle's losses) and the room.
+pub const ELONGATION_FEATURES: &[&str] = &[
+    "const",
+    "delta_stator",
+    "speed",
+    "load",
+    "heat_fast",
+    "heat_slow",
+    "ambient",
+];
+/// Ideal motor torque from motion (abnormality): constant, acceleration, speed, direction.
+pub const IDEAL_TORQUE_FEATURES: &[&str] = &["const", "acceleration", "speed", "direction"];
+
+/// A linear model over named terms.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearModel {
+    /// The equation in words, for reports ("T_flange = c0 + c1·T_stator").
+    pub equation: String,
+    /// Term names, `const` first.
+    pub terms: Vec<String>,
+    /// One coefficient per term.
+    pub coefficients: Vec<f64>,
+    /// R² of the fit.
+    pub r2: f64,
+    /// Samples it was fitted on.
+    pub n: usize,
+    /// The regression F statistic.
+    pub f_statistic: f64,
+    /// Its p-value.
+    pub f_p_value: f64,
+    /// Residual standard deviation, in the target's unit.
+    pub rmse: f64,
+}
+
+/// A heat-accumulation model (Eqs. 10–12): H ← H(1 − C_BH) + C_BH·H′ with H′ = |τ·n|, then a
+/// linear model over `HEAT_FEATURES`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeatModel {
+    /// Time constant of the heat accumulation, s.
+    pub tau_s: f64,
+    /// C_BH at the rate the model was fitted at (1 − e^(−Δt/τ)); rescaled for other rates.
+    pub c_bh: f64,
+    /// The temperature model.
+    pub temperature: LinearModel,
+}
+
+/// The spindle elongation model: time constants of the two heat terms and the linear model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ElongationModel {
+    /// Time constant of `heat_fast`, s.
+    pub fast_tau_s: f64,
+    /// Time constant of `heat_slow`, s.
+    pub slow_tau_s: f64,
+    /// The model over `ELONGATION_FEATURES`.
+    pub model: LinearModel,
+}
+
+/// Every fitted model of one axis.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisModels {
+    /// Motor flange temperature (Eq. 7).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motor_flange: Option<LinearModel>,
+    /// Nut-to-bearing torque ratio r_BN (Eq. 8).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nut_bearing_ratio: Option<LinearModel>,
+    /// Back-to-front bearing torque ratio (the same method, Sect. 3.2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub back_front_ratio: Option<LinearModel>,
+    /// Front bearing temperature.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub front_bearing_temp: Option<HeatModel>,
+    /// Back bearing temperature.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub back_bearing_temp: Option<HeatModel>,
+    /// Nut temperature.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nut_temp: Option<HeatModel>,
+    /// Horizontal straightness per node (Eq. 13), node 1 first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub straightness_h: Vec<LinearModel>,
+    /// Vertical straightness per node (Eq. 14).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub straightness_v: Vec<LinearModel>,
+    /// Spindle thermal elongation (Eq. 15).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elongation: Option<ElongationModel>,
+    /// Ideal torque from motion, for the abnormality score.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ideal_torque: Option<LinearModel>,
+}
+
+/// The fitted part of a machine profile.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    /// Sample rate of the database the models were fitted on, Hz.
+    pub fitted_rate_hz: f64,
+    /// The database files.
+    pub database: Vec<String>,
+    /// The experiment files that corrected it.
+    #[serde(default)]
+    pub experiments: Vec<String>,
+    /// Models per axis.
+    pub axes: BTreeMap<AxisId, AxisModels>,
+}
+
+impl Calibration {
+    /// Checks every model's shape against its feature set: (field, message) on error.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if !(self.fitted_rate_hz.is_finite() && self.fitted_rate_hz > 0.0) {
+            return Err(("fitted_rate_hz".into(), "must be positive".into()));
+        }
+        for (axis, m) in &self.axes {
+            let check = |name: String, model: &LinearModel, features: &[&str]| {
+                BoundModel::bind(model, features)
+                    .map(|_| ())
+                    .map_err(|e| (name, e))
+            };
+            let p = |field: &str| format!("axes.{axis}.{field}");
+            if let Some(model) = &m.motor_flange {
+                check(p("motor_flange"), model, FLANGE_FEATURES)?;
+            }
+            for (field, model) in [
+                ("nut_bearing_ratio", &m.nut_bearing_ratio),
+                ("back_front_ratio", &m.back_front_ratio),
+            ] {
+                if let Some(model) = model {
+                    check(p(field), model, RATIO_FEATURES)?;
+                }
+            }
+            for (field, model) in [
+                ("front_bearing_temp", &m.front_bearing_temp),
+                ("back_bearing_temp", &m.back_bearing_temp),
+                ("nut_temp", &m.nut_temp),
+            ] {
+                if let Some(heat) = model {
+                    if !(heat.tau_s > 0.0 && heat.c_bh > 0.0 && heat.c_bh <= 1.0) {
+                        return Err((p(field), "tau_s must be positive and c_bh in (0, 1]".into()));
+                    }
+                    check(p(field), &heat.temperature, HEAT_FEATURES)?;
+                }
+            }
+            for (k, model) in m.straightness_h.iter().enumerate() {
+                check(
+                    p(&format!("straightness_h[{k}]")),
+                    model,
+                    STRAIGHTNESS_FEATURES,
+                )?;
+            }
+            for (k, model) in m.straightness_v.iter().enumerate() {
+                check(
+                    p(&format!("straightness_v[{k}]")),
+                    model,
+                    STRAIGHTNESS_FEATURES,
+                )?;
+            }
+            if let Some(e) = &m.elongation {
+                if !(e.fast_tau_s > 0.0 && e.slow_tau_s > 0.0) {
+                    return Err((p("elongation"), "time constants must be positive".into()));
+                }
+                check(p("elongation"), &e.model, ELONGATION_FEATURES)?;
+            }
+            if let Some(model) = &m.ideal_torque {
+                check(p("ideal_torque"), model, IDEAL_TORQUE_FEATURES)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A model bound to a feature vector: evaluation is Σ cᵢ·x[idxᵢ].
+#[derive(Debug, Clone)]
+pub struct BoundModel {
+    terms: Vec<(usize, f64)>,
+}
+
+impl BoundModel {
+    /// Binds `model`'s terms to positions in `features`; unknown terms, duplicates, a missing
+    /// `const`, a length mismatch or a non-finite coefficient are errors.
+    pub fn bind(model: &LinearModel, features: &[&str]) -> Result<BoundModel, String> {
+        if model.terms.len() != model.coefficients.len() {
+            return Err(format!(
+                "{} terms but {} coefficients",
+                model.terms.len(),
+                model.coefficients.len()
+            ));
+        }
+        if model.terms.first().map(String::as_str) != Some("const") {
+            return Err("the first term must be `const`".into());
+        }
+        let mut terms = Vec::with_capacity(model.terms.len());
+        for (name, &c) in model.terms.iter().zip(&model.coefficients) {
+            let index = features
+                .iter()
+                .position(|f| f == name)
+                .ok_or_else(|| format!("unknown term `{name}` (known: {})", features.join(", ")))?;
+            if terms.iter().any(|(i, _)| *i == index) {
+                return Err(format!("term `{name}` listed twice"));
+            }
+            if !c.is_finite() {
+                return Err(format!("coefficient of `{name}` is not finite"));
+            }
+            terms.push((index, c));
+        }
+        Ok(BoundModel { terms })
+    }
+
+    /// Evaluates the model on a feature vector whose first entry is 1.
+    #[inline]
+    pub fn eval(&self, features: &[f64]) -> f64 {
+        self.terms.iter().map(|&(i, c)| c * features[i]).sum()
+    }
+
+    /// True if the model uses feature `index`.
+    pub fn uses(&self, index: usize) -> bool {
+        self.terms.iter().any(|(i, _)| *i == index)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(terms: &[&str], coefficients: &[f64]) -> LinearModel {
+        LinearModel {
+            equation: String::new(),
+            terms: terms.iter().map(|s| s.to_string()).collect(),
+            coefficients: coefficients.to_vec(),
+            r2: 1.0,
+            n: 10,
+            f_statistic: 1.0,
+            f_p_value: 0.0,
+            rmse: 0.0,
+        }
+    }
+
+    #[test]
+    fn binding_maps_names_to_features_and_evaluates() {
+        let bound = BoundModel::bind(
+            &model(&["const", "ambient", "stator"], &[1.0, 2.0, 3.0]),
+            FLANGE_FEATURES,
+        )
+        .unwrap();
+        assert_eq!(
+            bound.eval(&[1.0, 10.0, 100.0]),
+            1.0 + 3.0 * 10.0 + 2.0 * 100.0
+        );
+    }
+
+    #[test]
+    fn binding_refuses_malformed_models() {
+        assert!(
+            BoundModel::bind(&model(&["const", "rotor"], &[1.0, 2.0]), FLANGE_FEATURES)
+                .unwrap_err()
+                .contains("unknown term `rotor`")
+        );
+        assert!(BoundModel::bind(&model(&["stator"], &[1.0]), FLANGE_FEATURES).is_err());
+        assert!(BoundModel::bind(&model(&["const", "stator"], &[1.0]), FLANGE_FEATURES).is_err());
+        assert!(
+            BoundModel::bind(
+                &model(&["const", "stator", "stator"], &[1.0, 1.0, 1.0]),
+                FLANGE_FEATURES
+            )
+            .is_err()
+        );
+        assert!(BoundModel::bind(&model(&["const"], &[f64::NAN]), FLANGE_FEATURES).is_err());
+    }
+}

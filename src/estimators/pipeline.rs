@@ -1,0 +1,557 @@
+//! The estimator pipeline: every estimator of every axis, bound to a frame layout once, then
+//! updated frame by frame without allocating.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
+
+use crate::profile::{AxisKind, MachineProfile};
+use crate::signal::channel::AMBIENT;
+use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
+
+use super::models::AxisModels;
+use super::streaming::{
+    ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, SpindleElongationEstimator,
+    StraightnessEstimator, TorqueSplit, TorqueSplitEstimator, minimum_zone_straightness,
+};
+
+/// Why a pipeline could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// The profile has no calibration.
+    #[error("the profile `{0}` is not calibrated: run `servosight calibrate` first")]
+    NotCalibrated(String),
+    /// A model in the profile is malformed.
+    #[error("axis {axis}: {what}: {message}")]
+    Model {
+        /// The axis.
+        axis: AxisId,
+        /// Which model.
+        what: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The frames lack a column an estimator needs.
+    #[error("no column `{column}` in the frames (needed for {purpose})")]
+    MissingColumn {
+        /// The column.
+        column: String,
+        /// What needs it.
+        purpose: String,
+    },
+}
+
+/// Estimates of one feed axis at one instant. `NaN` marks an estimate the profile has no model for.
+#[derive(Debug, Clone, Copy)]
+pub struct FeedAxisEstimate {
+    /// Motor flange temperature, °C.
+    pub motor_flange_C: f64,
+    /// Motor torque split.
+    pub split: TorqueSplit,
+    /// Front bearing temperature, °C.
+    pub front_bearing_C: f64,
+    /// Back bearing temperature, °C.
+    pub back_bearing_C: f64,
+    /// Nut temperature, °C.
+    pub nut_C: f64,
+    /// Horizontal straightness deviation per node, µm (first `nodes` entries).
+    pub straightness_h_um: [f64; MAX_NODES],
+    /// Vertical straightness deviation per node, µm.
+    pub straightness_v_um: [f64; MAX_NODES],
+    /// Number of straightness nodes (0 without straightness models).
+    pub nodes: usize,
+    /// Positions of the nodes along the stroke, mm.
+    pub node_positions_mm: [f64; MAX_NODES],
+}
+
+impl FeedAxisEstimate {
+    /// ISO 1101 horizontal straightness over the nodes (minimum zone), µm.
+    pub fn straightness_h_zone_um(&self) -> f64 {
+        self.zone(&self.straightness_h_um)
+    }
+
+    /// ISO 1101 vertical straightness over the nodes (minimum zone), µm.
+    pub fn straightness_v_zone_um(&self) -> f64 {
+        self.zone(&self.straightness_v_um)
+    }
+
+    fn zone(&self, deviations: &[f64; MAX_NODES]) -> f64 {
+        if self.nodes < 2 {
+            return f64::NAN;
+        }
+        minimum_zone_straightness(
+            &self.node_positions_mm[..self.nodes],
+            &deviations[..self.nodes],
+        )
+    }
+}
+
+impl Default for FeedAxisEstimate {
+    fn default() -> Self {
+        FeedAxisEstimate {
+            motor_flange_C: f64::NAN,
+            split: TorqueSplit {
+                bearing_Nm: f64::NAN,
+                front_bearing_Nm: f64::NAN,
+                back_bearing_Nm: f64::NAN,
+                nut_Nm: f64::NAN,
+            },
+            front_bearing_C: f64::NAN,
+            back_bearing_C: f64::NAN,
+            nut_C: f64::NAN,
+            straightness_h_um: [f64::NAN; MAX_NODES],
+            straightness_v_um: [f64::NAN; MAX_NODES],
+            nodes: 0,
+            node_positions_mm: [f64::NAN; MAX_NODES],
+        }
+    }
+}
+
+/// Estimates of the spindle at one instant.
+#[derive(Debug, Clone, Copy)]
+pub struct SpindleEstimate {
+    /// Thermal elongation since the tool calibration, µm.
+    pub elongation_um: f64,
+}
+
+/// Where an axis's servo signals are in the frame.
+#[derive(Debug, Clone, Copy)]
+struct AxisChannels {
+    speed: usize,
+    torque: usize,
+    load: Option<usize>,
+    stator: usize,
+    position: Option<usize>,
+}
+
+impl AxisChannels {
+    fn resolve(schema: &Schema, axis: AxisId) -> Result<Self, PipelineError> {
+        let need = |q: Quantity| {
+            let name = axis_column(axis, q);
+            schema.index_of(&name).ok_or(PipelineError::MissingColumn {
+                column: name,
+                purpose: format!("the {axis} axis estimators"),
+            })
+        };
+        Ok(AxisChannels {
+            speed: need(Quantity::Speed)?,
+            torque: need(Quantity::Torque)?,
+            load: schema.index_of(&axis_column(axis, Quantity::Load)),
+            stator: need(Quantity::StatorTemp)?,
+            position: schema.index_of(&axis_column(axis, Quantity::Position)),
+        })
+    }
+}
+
+struct FeedAxisPipeline {
+    axis: AxisId,
+    channels: AxisChannels,
+    travel: TravelSpeed,
+    flange: Option<MotorFlangeEstimator>,
+    split: Option<TorqueSplitEstimator>,
+    front: Option<ComponentThermalEstimator>,
+    back: Option<ComponentThermalEstimator>,
+    nut: Option<ComponentThermalEstimator>,
+    straightness_h: Option<StraightnessEstimator>,
+    straightness_v: Option<StraightnessEstimator>,
+    estimate: FeedAxisEstimate,
+}
+
+struct SpindlePipeline {
+    axis: AxisId,
+    channels: AxisChannels,
+    elongation: SpindleElongationEstimator,
+    estimate: SpindleEstimate,
+}
+
+/// Every estimator of a machine.
+pub struct EstimatorPipeline {
+    feed: Vec<FeedAxisPipeline>,
+    spindles: Vec<SpindlePipeline>,
+    ambient: Option<usize>,
+    previous_time: Option<f64>,
+}
+
+impl EstimatorPipeline {
+    /// Binds the profile's calibrated models to frames laid out as `schema`.
+    pub fn new(profile: &MachineProfile, schema: &Schema) -> Result<Self, PipelineError> {
+        let calibration = profile
+            .calibration
+            .as_ref()
+            .ok_or_else(|| PipelineError::NotCalibrated(profile.name.clone()))?;
+        let ambient = schema.index_of(AMBIENT);
+        let mut feed = Vec::new();
+        let mut spindles = Vec::new();
+        for (&axis, axis_profile) in &profile.axes {
+            let Some(models) = calibration.axes.get(&axis) else {
+                continue;
+            };
+            if uses_ambient(models) && ambient.is_none() {
+                return Err(PipelineError::MissingColumn {
+                    column: AMBIENT.into(),
+                    purpose: format!(
+                        "the {axis} axis models, which were fitted with the room temperature"
+                    ),
+                });
+            }
+            let channels = AxisChannels::resolve(schema, axis)?;
+            let model_err = |what: &'static str| {
+                move |message: String| PipelineError::Model {
+                    axis,
+                    what,
+                    message,
+                }
+            };
+            match axis_profile.kind {
+                AxisKind::Feed => {
+                    let split = match (&models.nut_bearing_ratio, &models.back_front_ratio) {
+                        (Some(nb), Some(bf)) => Some(
+                            TorqueSplitEstimator::new(nb, bf).map_err(model_err("torque split"))?,
+                        ),
+                        _ => None,
+                    };
+                    let thermal = |m: &Option<super::models::HeatModel>, what: &'static str| {
+                        m.as_ref()
+                            .map(|m| ComponentThermalEstimator::new(m).map_err(model_err(what)))
+                            .transpose()
+                    };
+                    let positions = axis_profile
+                        .screw
+                        .as_ref()
+                        .map(|s| s.node_positions_mm.clone())
+                        .unwrap_or_default();
+                    let straightness = |m: &Vec<super::models::LinearModel>, what: &'static str| {
+                        if m.is_empty() {
+                            Ok(None)
+                        } else {
+                            StraightnessEstimator::new(m, &positions)
+                                .map(Some)
+                                .map_err(model_err(what))
+                        }
+                    };
+                    let lead_mm = axis_profile.screw.as_ref().map_or(1.0, |s| s.lead_mm);
+                    feed.push(FeedAxisPipeline {
+                        axis,
+                        channels,
+                        travel: TravelSpeed::new(lead_mm),
+                        flange: models
+                            .motor_flange
+                            .as_ref()
+                            .map(|m| {
+                                MotorFlangeEstimator::new(m).map_err(model_err("motor flange"))
+                            })
+                            .transpose()?,
+                        front: thermal(&models.front_bearing_temp, "front bearing temperature")?,
+                        back: thermal(&models.back_bearing_temp, "back bearing temperature")?,
+                        nut: thermal(&models.nut_temp, "nut temperature")?,
+                        split,
+                        straightness_h: straightness(
+                            &models.straightness_h,
+                            "horizontal straightness",
+                        )?,
+                        straightness_v: straightness(
+                            &models.straightness_v,
+                            "vertical straightness",
+                        )?,
+                        estimate: {
+                            let mut estimate = FeedAxisEstimate::default();
+                            for (slot, x) in estimate.node_positions_mm.iter_mut().zip(&positions) {
+                                *slot = *x;
+                            }
+                            estimate
+                        },
+                    });
+                }
+                AxisKind::Spindle => {
+                    if let Some(model) = &models.elongation {
+                        spindles.push(SpindlePipeline {
+                            axis,
+                            channels,
+                            elongation: SpindleElongationEstimator::new(model)
+                                .map_err(model_err("elongation"))?,
+                            estimate: SpindleEstimate {
+                                elongation_um: f64::NAN,
+                            },
+                        });
+                    }
+                }
+            }
+        }
+        Ok(EstimatorPipeline {
+            feed,
+            spindles,
+            ambient,
+            previous_time: None,
+        })
+    }
+
+    /// Updates every estimator with one frame (column 0 is `time_s`).
+    pub fn update(&mut self, frame: &[f64]) {
+        let t = frame[0];
+        let dt = self.previous_time.map_or(0.0, |p| (t - p).max(0.0));
+        self.previous_time = Some(t);
+        let ambient = self.ambient.map_or(f64::NAN, |i| frame[i]);
+        for axis in &mut self.feed {
+            let c = axis.channels;
+            let (torque, stator) = (frame[c.torque], frame[c.stator]);
+            let speed = axis
+                .travel
+                .update(c.position.map(|i| frame[i]), frame[c.speed], dt);
+            let e = &mut axis.estimate;
+            if let Some(flange) = &axis.flange {
+                e.motor_flange_C = flange.update(stator, ambient);
+            }
+            if let Some(split) = &axis.split {
+                e.split = split.update(torque);
+                if let Some(front) = &mut axis.front {
+                    e.front_bearing_C =
+                        front.update(e.split.front_bearing_Nm, speed, stator, ambient, dt);
+                }
+                if let Some(back) = &mut axis.back {
+                    e.back_bearing_C =
+                        back.update(e.split.back_bearing_Nm, speed, stator, ambient, dt);
+                }
+                if let Some(nut) = &mut axis.nut {
+                    e.nut_C = nut.update(e.split.nut_Nm, speed, stator, ambient, dt);
+                }
+            }
+            let motor = e.motor_flange_C;
+            if let Some(h) = &axis.straightness_h {
+                e.nodes = h.nodes();
+                h.update(
+                    e.front_bearing_C,
+                    e.back_bearing_C,
+                    motor,
+                    ambient,
+                    &mut e.straightness_h_um,
+                );
+            }
+            if let Some(v) = &axis.straightness_v {
+                e.nodes = v.nodes();
+                v.update(
+                    e.front_bearing_C,
+                    e.back_bearing_C,
+                    motor,
+                    ambient,
+                    &mut e.straightness_v_um,
+                );
+            }
+        }
+        for spindle in &mut self.spindles {
+            let c = spindle.channels;
+            let load = c.load.map_or(0.0, |i| frame[i]);
+            spindle.estimate.elongation_um =
+                spindle
+                    .elongation
+                    .update(frame[c.stator], frame[c.speed], load, ambient, dt);
+        }
+    }
+
+    /// The latest estimates of a feed axis.
+    pub fn feed_axis(&self, axis: AxisId) -> Option<&FeedAxisEstimate> {
+        self.feed
+            .iter()
+            .find(|a| a.axis == axis)
+            .map(|a| &a.estimate)
+    }
+
+    /// The latest estimates of a spindle.
+    pub fn spindle(&self, axis: AxisId) -> Option<&SpindleEstimate> {
+        self.spindles
+            .iter()
+            .find(|a| a.axis == axis)
+            .map(|a| &a.estimate)
+    }
+
+    /// The operator measured the tool: spindle elongation counts from the next frame.
+    pub fn reset_tool_calibration(&mut self) {
+        for spindle in &mut self.spindles {
+            spindle.elongation.reset_tool_calibration();
+        }
+    }
+
+    /// The estimates this pipeline produces, as (estimate id, output column, reference column).
+    pub fn outputs(&self) -> Vec<EstimateOutput> {
+        let mut out = Vec::new();
+        for axis in &self.feed {
+            let a = axis.axis;
+            let mut push = |id: String, est: String, reference: String| {
+                out.push(EstimateOutput {
+                    id,
+                    column: est,
+                    reference,
+                })
+            };
+            if axis.flange.is_some() {
+                push(
+                    "motor_flange_temp".into(),
+                    format!("est.{a}.motor_flange_temp_C"),
+                    reference_column(a, "motor_flange_temp_C", None),
+                );
+            }
+            if axis.split.is_some() {
+                for (id, q) in [
+                    ("front_bearing_torque", "front_bearing_torque_Nm"),
+                    ("back_bearing_torque", "back_bearing_torque_Nm"),
+                    ("nut_torque", "nut_torque_Nm"),
+                ] {
+                    push(
+                        id.into(),
+                        format!("est.{a}.{q}"),
+                        reference_column(a, q, None),
+                    );
+                }
+            }
+            for (present, id, q) in [
+                (
+                    axis.front.is_some(),
+                    "front_bearing_temp",
+                    "front_bearing_temp_C",
+                ),
+                (
+                    axis.back.is_some(),
+                    "back_bearing_temp",
+                    "back_bearing_temp_C",
+                ),
+                (axis.nut.is_some(), "nut_temp", "nut_temp_C"),
+            ] {
+                if present {
+                    push(
+                        id.into(),
+                        format!("est.{a}.{q}"),
+                        reference_column(a, q, None),
+                    );
+                }
+            }
+            for (estimator, hv) in [(&axis.straightness_h, "h"), (&axis.straightness_v, "v")] {
+                if let Some(s) = estimator {
+                    for k in 1..=s.nodes() {
+                        let q = format!("straightness_{hv}_um");
+                        push(
+                            format!("straightness_{hv}#{k}"),
+                            format!("est.{a}.{q}#{k}"),
+                            reference_column(a, &q, Some(k)),
+                        );
+                    }
+                    push(
+                        format!("straightness_{hv}_zone"),
+                        format!("est.{a}.straightness_{hv}_zone_um"),
+                        String::new(),
+                    );
+                }
+            }
+        }
+        for spindle in &self.spindles {
+            let a = spindle.axis;
+            out.push(EstimateOutput {
+                id: "spindle_elongation".into(),
+                column: format!("est.{a}.elongation_um"),
+                reference: reference_column(a, "elongation_um", None),
+            });
+        }
+        out
+    }
+
+    /// Writes the latest estimates in the order of [`Self::outputs`].
+    pub fn write_outputs(&self, out: &mut Vec<f64>) {
+        out.clear();
+        for axis in &self.feed {
+            let e = &axis.estimate;
+            if axis.flange.is_some() {
+                out.push(e.motor_flange_C);
+            }
+            if axis.split.is_some() {
+                out.extend([
+                    e.split.front_bearing_Nm,
+                    e.split.back_bearing_Nm,
+                    e.split.nut_Nm,
+                ]);
+            }
+            for (present, value) in [
+                (axis.front.is_some(), e.front_bearing_C),
+                (axis.back.is_some(), e.back_bearing_C),
+                (axis.nut.is_some(), e.nut_C),
+            ] {
+                if present {
+                    out.push(value);
+                }
+            }
+            for (estimator, values, zone) in [
+                (
+                    &axis.straightness_h,
+                    &e.straightness_h_um,
+                    e.straightness_h_zone_um(),
+                ),
+                (
+                    &axis.straightness_v,
+                    &e.straightness_v_um,
+                    e.straightness_v_zone_um(),
+                ),
+            ] {
+                if let Some(s) = estimator {
+                    out.extend_from_slice(&values[..s.nodes()]);
+                    out.push(zone);
+                }
+            }
+        }
+        for spindle in &self.spindles {
+            out.push(spindle.estimate.elongation_um);
+        }
+    }
+}
+
+/// The speed an axis travelled at over the last sample interval, from its encoder position;
+/// the sampled speed when there is no position channel or no interval yet.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TravelSpeed {
+    lead_mm: f64,
+    previous_mm: Option<f64>,
+}
+
+impl TravelSpeed {
+    pub(crate) fn new(lead_mm: f64) -> Self {
+        TravelSpeed {
+            lead_mm,
+            previous_mm: None,
+        }
+    }
+
+    /// rpm over the interval `dt` ending at this frame.
+    #[inline]
+    pub(crate) fn update(&mut self, position_mm: Option<f64>, sampled_rpm: f64, dt: f64) -> f64 {
+        let Some(x) = position_mm else {
+            return sampled_rpm;
+        };
+        let previous = self.previous_mm.replace(x);
+        match previous {
+            Some(p) if dt > 0.0 => (x - p).abs() / self.lead_mm / dt * 60.0,
+            _ => sampled_rpm,
+        }
+    }
+}
+
+/// One estimate the pipeline writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimateOutput {
+    /// The estimate id of DESIGN.md (`nut_temp`, `straightness_h#3`, …).
+    pub id: String,
+    /// The output column (`est.X.nut_temp_C`).
+    pub column: String,
+    /// The reference column it is validated against (empty if none can exist).
+    pub reference: String,
+}
+
+fn uses_ambient(models: &AxisModels) -> bool {
+    let uses = |m: &super::models::LinearModel| m.terms.iter().any(|t| t == "ambient");
+    models.motor_flange.as_ref().is_some_and(uses)
+        || [
+            &models.front_bearing_temp,
+            &models.back_bearing_temp,
+            &models.nut_temp,
+        ]
+        .iter()
+        .any(|m| m.as_ref().is_some_and(|h| uses(&h.temperature)))
+        || models
+            .straightness_h
+            .iter()
+            .chain(&models.straightness_v)
+            .any(uses)
+        || models.elongation.as_ref().is_some_and(|e| uses(&e.model))
+}

@@ -1,0 +1,408 @@
+//! Streaming estimators: each takes one frame and returns its estimate, allocating nothing.
+//!
+//! One type per estimate, as in the paper's model table. They are pure functions of the frames
+//! they have seen plus their fitted models, so the same code runs live at 1 kHz, over a replayed
+//! recording, and in benchmarks.
+#![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
+
+use super::models::{
+    BoundModel, ELONGATION_FEATURES, ElongationModel, FLANGE_FEATURES, HEAT_FEATURES, HeatModel,
+    LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
+};
+
+/// rpm → rad/s.
+const RPM_TO_RAD_PER_S: f64 = std::f64::consts::PI / 30.0;
+
+/// First-order accumulation with time constant τ, exact for any step: x ← x + (1 − e^(−Δt/τ))(u − x).
+/// The factor is cached for the current step, so a steady sample rate costs no `exp`.
+#[derive(Debug, Clone)]
+pub struct HeatAccumulator {
+    tau_s: f64,
+    value: f64,
+    cached_dt: f64,
+    cached_factor: f64,
+}
+
+impl HeatAccumulator {
+    /// An empty accumulator (a machine at rest) with time constant `tau_s`.
+    pub fn new(tau_s: f64) -> Self {
+        HeatAccumulator {
+            tau_s,
+            value: 0.0,
+            cached_dt: f64::NAN,
+            cached_factor: 0.0,
+        }
+    }
+
+    /// The paper's C_BH at a sample rate, `1 − e^(−1/(rate·τ))`: the coefficient fitted at one
+    /// rate is rescaled to another through τ.
+    pub fn c_bh_at_rate(tau_s: f64, rate_hz: f64) -> f64 {
+        1.0 - (-1.0 / (rate_hz * tau_s)).exp()
+    }
+
+    /// Adds one sample of heat input `current` over `dt` seconds; returns the accumulated heat.
+    #[inline]
+    pub fn update(&mut self, current: f64, dt: f64) -> f64 {
+        if dt != self.cached_dt {
+            self.cached_dt = dt;
+            self.cached_factor = if dt > 0.0 {
+                1.0 - (-dt / self.tau_s).exp()
+            } else {
+                0.0
+            };
+        }
+        self.value += self.cached_factor * (current - self.value);
+        self.value
+    }
+
+    /// The accumulated heat.
+    pub fn value(&self) -> f64 {
+        self.value
+    }
+}
+
+/// Motor flange temperature from the stator temperature (Eq. 7).
+#[derive(Debug, Clone)]
+pub struct MotorFlangeEstimator {
+    model: BoundModel,
+}
+
+impl MotorFlangeEstimator {
+    /// Binds the fitted model.
+    pub fn new(model: &LinearModel) -> Result<Self, String> {
+        Ok(MotorFlangeEstimator {
+            model: BoundModel::bind(model, FLANGE_FEATURES)?,
+        })
+    }
+
+    /// °C from the stator and room temperatures.
+    #[inline]
+    pub fn update(&self, stator_C: f64, ambient_C: f64) -> f64 {
+        self.model.eval(&[1.0, stator_C, ambient_C])
+    }
+}
+
+/// The motor torque split into front bearing, back bearing and nut torque (Eq. 8).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TorqueSplit {
+    /// Both support bearings, N·m.
+    pub bearing_Nm: f64,
+    /// Front (fixed-side) bearing, N·m.
+    pub front_bearing_Nm: f64,
+    /// Back bearing, N·m.
+    pub back_bearing_Nm: f64,
+    /// Nut, N·m.
+    pub nut_Nm: f64,
+}
+
+/// Splits motor torque with the fitted ratio cubics: τ_B = τ_M / (1 + r_BN), τ_N = τ_M − τ_B,
+/// and the bearings the same way with the back-to-front ratio.
+#[derive(Debug, Clone)]
+pub struct TorqueSplitEstimator {
+    nut_bearing: BoundModel,
+    back_front: BoundModel,
+}
+
+impl TorqueSplitEstimator {
+    /// Binds the two ratio models.
+    pub fn new(nut_bearing: &LinearModel, back_front: &LinearModel) -> Result<Self, String> {
+        Ok(TorqueSplitEstimator {
+            nut_bearing: BoundModel::bind(nut_bearing, RATIO_FEATURES)?,
+            back_front: BoundModel::bind(back_front, RATIO_FEATURES)?,
+        })
+    }
+
+    /// Splits `motor_Nm`. Ratios are kept non-negative: a negative fitted ratio at the edge of
+    /// the calibrated range would flip a component's torque, which no physics allows.
+    #[inline]
+    pub fn update(&self, motor_Nm: f64) -> TorqueSplit {
+        let t = motor_Nm;
+        let features = [1.0, t, t * t, t * t * t];
+        let r_nb = self.nut_bearing.eval(&features).max(0.0);
+        let r_bf = self.back_front.eval(&features).max(0.0);
+        let bearing = t / (1.0 + r_nb);
+        let front = bearing / (1.0 + r_bf);
+        TorqueSplit {
+            bearing_Nm: bearing,
+            front_bearing_Nm: front,
+            back_bearing_Nm: bearing - front,
+            nut_Nm: t - bearing,
+        }
+    }
+}
+
+/// Component temperature from accumulated friction heat (Eqs. 9–12).
+///
+/// Eq. 11's heat H′ = C_HB·τ·n has two parts here. The preload drag torque of a bearing or
+/// nut is nearly constant, so its heat is ∝ n; the load-dependent part is ∝ n·|τ|. Both are
+/// accumulated with the fitted τ (Eq. 10). `n` is the axis's *travel* speed over the last
+/// sample interval (encoder distance / time) rather than the sampled speed: a 1 Hz sample of a
+/// 0.3 s rapid move usually sees the axis standing, but the encoder saw it move.
+#[derive(Debug, Clone)]
+pub struct ComponentThermalEstimator {
+    heat: HeatAccumulator,
+    load_heat: HeatAccumulator,
+    model: BoundModel,
+}
+
+impl ComponentThermalEstimator {
+    /// Binds a fitted heat model. The accumulator uses the model's τ, which is what rescales
+    /// C_BH to the live sample rate.
+    pub fn new(model: &HeatModel) -> Result<Self, String> {
+        Ok(ComponentThermalEstimator {
+            heat: HeatAccumulator::new(model.tau_s),
+            load_heat: HeatAccumulator::new(model.tau_s),
+            model: BoundModel::bind(&model.temperature, HEAT_FEATURES)?,
+        })
+    }
+
+    /// °C after one sample, from the component's torque, the travel speed over the interval,
+    /// and the stator and room temperatures.
+    #[inline]
+    pub fn update(
+        &mut self,
+        torque_Nm: f64,
+        travel_rpm: f64,
+        stator_C: f64,
+        ambient_C: f64,
+        dt: f64,
+    ) -> f64 {
+        let (drag, load) = heat_inputs(torque_Nm, travel_rpm);
+        let h = self.heat.update(drag, dt);
+        let l = self.load_heat.update(load, dt);
+        self.model.eval(&[1.0, stator_C, ambient_C, h, l])
+    }
+
+    /// The accumulated heat, W.
+    pub fn heat(&self) -> f64 {
+        self.heat.value()
+    }
+}
+
+/// The two heat inputs of a component: drag heat ∝ travel speed (krpm) and load heat ∝ travel
+/// speed × |torque| (kW-like units: N·m · rad/s / 1000).
+#[inline]
+pub fn heat_inputs(torque_Nm: f64, travel_rpm: f64) -> (f64, f64) {
+    let krpm = travel_rpm.abs() / 1000.0;
+    (
+        krpm,
+        (torque_Nm * travel_rpm * RPM_TO_RAD_PER_S).abs() / 1000.0,
+    )
+}
+
+/// Largest number of straightness nodes an axis may have.
+pub const MAX_NODES: usize = 16;
+
+/// Straightness deviation per node from estimated temperatures (Eqs. 13–14), and the ISO 1101
+/// minimum-zone straightness value over the nodes.
+#[derive(Debug, Clone)]
+pub struct StraightnessEstimator {
+    models: Vec<BoundModel>,
+    positions_mm: Vec<f64>,
+}
+
+impl StraightnessEstimator {
+    /// Binds one model per node.
+    pub fn new(models: &[LinearModel], positions_mm: &[f64]) -> Result<Self, String> {
+        if models.len() != positions_mm.len() {
+            return Err(format!(
+                "{} straightness models for {} nodes",
+                models.len(),
+                positions_mm.len()
+            ));
+        }
+        if models.len() > MAX_NODES {
+            return Err(format!("at most {MAX_NODES} straightness nodes"));
+        }
+        Ok(StraightnessEstimator {
+            models: models
+                .iter()
+                .map(|m| BoundModel::bind(m, STRAIGHTNESS_FEATURES))
+                .collect::<Result<_, _>>()?,
+            positions_mm: positions_mm.to_vec(),
+        })
+    }
+
+    /// Fills `out` with each node's deviation, µm. The ISO 1101 value is a pure function of
+    /// these and is computed when read ([`minimum_zone_straightness`]), not on every frame.
+    #[inline]
+    pub fn update(
+        &self,
+        front_C: f64,
+        back_C: f64,
+        motor_C: f64,
+        ambient_C: f64,
+        out: &mut [f64; MAX_NODES],
+    ) {
+        let (f2, b2, m2) = (front_C * front_C, back_C * back_C, motor_C * motor_C);
+        let features = [
+            1.0,
+            front_C,
+            f2,
+            f2 * front_C,
+            back_C,
+            b2,
+            b2 * back_C,
+            motor_C,
+            m2,
+            m2 * motor_C,
+            ambient_C,
+        ];
+        for (slot, model) in out.iter_mut().zip(&self.models) {
+            *slot = model.eval(&features);
+        }
+    }
+
+    /// Node positions along the stroke, mm.
+    pub fn positions_mm(&self) -> &[f64] {
+        &self.positions_mm
+    }
+
+    /// Number of nodes.
+    pub fn nodes(&self) -> usize {
+        self.models.len()
+    }
+}
+
+/// ISO 1101 straightness of a profile given as deviations `d` at positions `x`: the smallest
+/// distance, measured in the direction of the deviation, between two parallel lines enclosing
+/// every point (the minimum zone). The optimal pair of lines is parallel to a line through two
+/// of the points (a vertex of the convex hull), so trying every pair is exact; it is O(n³),
+/// which for the handful of nodes of an axis is a few hundred operations.
+pub fn minimum_zone_straightness(x: &[f64], d: &[f64]) -> f64 {
+    let n = x.len().min(d.len());
+    if n < 2 {
+        return 0.0;
+    }
+    let width = |slope: f64| {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for i in 0..n {
+            let r = d[i] - slope * x[i];
+            lo = lo.min(r);
+            hi = hi.max(r);
+        }
+        hi - lo
+    };
+    let mut best = f64::INFINITY;
+    for i in 0..n {
+        for j in (i + 1)..n {
+            let dx = x[j] - x[i];
+            if dx.abs() > 1e-12 {
+                best = best.min(width((d[j] - d[i]) / dx));
+            }
+        }
+    }
+    best
+}
+
+/// Spindle thermal elongation (Eq. 15) with ΔT measured from the tool-calibration moment,
+/// which the operator can reset.
+#[derive(Debug, Clone)]
+pub struct SpindleElongationEstimator {
+    model: BoundModel,
+    fast: HeatAccumulator,
+    slow: HeatAccumulator,
+    stator_at_calibration: Option<f64>,
+    elongation_at_calibration: f64,
+}
+
+impl SpindleElongationEstimator {
+    /// Binds the fitted model.
+    pub fn new(model: &ElongationModel) -> Result<Self, String> {
+        Ok(SpindleElongationEstimator {
+            model: BoundModel::bind(&model.model, ELONGATION_FEATURES)?,
+            fast: HeatAccumulator::new(model.fast_tau_s),
+            slow: HeatAccumulator::new(model.slow_tau_s),
+            stator_at_calibration: None,
+            elongation_at_calibration: 0.0,
+        })
+    }
+
+    /// The operator measured the tool length now: elongation counts from here. Takes effect on
+    /// the next frame.
+    pub fn reset_tool_calibration(&mut self) {
+        self.stator_at_calibration = None;
+    }
+
+    /// µm since the tool calibration.
+    #[inline]
+    pub fn update(
+        &mut self,
+        stator_C: f64,
+        speed_rpm: f64,
+        load_pct: f64,
+        ambient_C: f64,
+        dt: f64,
+    ) -> f64 {
+        let speed_krpm = speed_rpm.abs() / 1000.0;
+        let fast = self.fast.update(speed_krpm, dt);
+        let slow = self.slow.update(speed_krpm, dt);
+        let first = self.stator_at_calibration.is_none();
+        let reference = *self.stator_at_calibration.get_or_insert(stator_C);
+        let value = self.model.eval(&[
+            1.0,
+            stator_C - reference,
+            speed_krpm,
+            load_pct.abs(),
+            fast,
+            slow,
+            ambient_C,
+        ]);
+        if first {
+            self.elongation_at_calibration = value;
+        }
+        value - self.elongation_at_calibration
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn minimum_zone_of_a_straight_line_is_zero_and_of_a_bow_is_its_sag() {
+        let x = [0.0, 100.0, 200.0, 300.0, 400.0];
+        assert!(minimum_zone_straightness(&x, &[1.0, 3.0, 5.0, 7.0, 9.0]).abs() < 1e-12);
+        // A symmetric bow 0, 3, 4, 3, 0: the zone is the 4 µm sag (end points on one line).
+        assert!((minimum_zone_straightness(&x, &[0.0, 3.0, 4.0, 3.0, 0.0]) - 4.0).abs() < 1e-12);
+        // A tilted bow has the same straightness.
+        let tilted: Vec<f64> = [0.0, 3.0, 4.0, 3.0, 0.0]
+            .iter()
+            .zip(&x)
+            .map(|(d, x)| d + 0.01 * x)
+            .collect();
+        assert!((minimum_zone_straightness(&x, &tilted) - 4.0).abs() < 1e-9);
+    }
+
+    /// The minimum zone never exceeds the zone around the end-point line and is never negative.
+    #[test]
+    fn minimum_zone_is_at_most_the_end_point_zone() {
+        let x = [0.0, 50.0, 120.0, 260.0, 300.0, 410.0];
+        let d = [0.3, -1.2, 2.5, 0.1, -0.7, 1.9];
+        let slope = (d[5] - d[0]) / (x[5] - x[0]);
+        let residuals: Vec<f64> = (0..6).map(|i| d[i] - slope * x[i]).collect();
+        let end_point = residuals.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - residuals.iter().cloned().fold(f64::INFINITY, f64::min);
+        let zone = minimum_zone_straightness(&x, &d);
+        assert!(zone >= 0.0 && zone <= end_point + 1e-12);
+    }
+
+    #[test]
+    fn heat_accumulator_rescales_with_the_sample_rate() {
+        // One hour of constant input at 1 Hz and at 1 kHz reaches the same value.
+        let mut slow = HeatAccumulator::new(900.0);
+        let mut fast = HeatAccumulator::new(900.0);
+        for _ in 0..3600 {
+            slow.update(50.0, 1.0);
+        }
+        for _ in 0..3_600_000 {
+            fast.update(50.0, 0.001);
+        }
+        let expected = 50.0 * (1.0 - (-4.0_f64).exp());
+        assert!((slow.value() - expected).abs() < 1e-9);
+        assert!((fast.value() - expected).abs() < 1e-6);
+        let c1 = HeatAccumulator::c_bh_at_rate(900.0, 1.0);
+        let c1000 = HeatAccumulator::c_bh_at_rate(900.0, 1000.0);
+        assert!(((1.0 - c1000).powf(1000.0) - (1.0 - c1)).abs() < 1e-12);
+    }
+}

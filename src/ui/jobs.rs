@@ -1,0 +1,213 @@
+//! Long work off the UI thread, with progress and cancel: one named thread per job
+//! (`servosight-job`), progress through a bounded channel, cancel through a shared flag that
+//! the job checks between steps.
+
+use std::io::Read;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc;
+
+use super::state::JobProgress;
+use crate::fit::{Design, FitReport, ols, parse_terms, sensitivity};
+use crate::signal::{Recording, RecordingReader};
+
+/// What a job reports.
+#[derive(Debug)]
+pub enum JobMessage<T> {
+    /// How far it has got.
+    Progress(JobProgress),
+    /// It finished.
+    Done(T),
+    /// It failed.
+    Failed(String),
+    /// It stopped because it was cancelled.
+    Cancelled,
+}
+
+/// A running job.
+pub struct Job<T> {
+    messages: mpsc::Receiver<JobMessage<T>>,
+    cancel: Arc<AtomicBool>,
+    /// What the job does, for the event list.
+    pub title: String,
+}
+
+impl<T: Send + 'static> Job<T> {
+    /// Starts `work` on its own thread. `work` gets a [`JobContext`] to report progress and
+    /// check for cancellation.
+    pub fn spawn(
+        title: impl Into<String>,
+        work: impl FnOnce(&JobContext<T>) -> Result<T, JobStop> + Send + 'static,
+    ) -> std::io::Result<Job<T>> {
+        let (tx, rx) = mpsc::sync_channel(64);
+        let cancel = Arc::new(AtomicBool::new(false));
+        let context = JobContext {
+            messages: tx,
+            cancel: Arc::clone(&cancel),
+        };
+        std::thread::Builder::new()
+            .name("servosight-job".into())
+            .spawn(move || {
+                let outcome = match work(&context) {
+                    Ok(value) => JobMessage::Done(value),
+                    Err(JobStop::Cancelled) => JobMessage::Cancelled,
+                    Err(JobStop::Failed(reason)) => JobMessage::Failed(reason),
+                };
+                // The final message must arrive even when the UI is slow to drain: wait.
+                let _ = context.messages.send(outcome);
+            })?;
+        Ok(Job {
+            messages: rx,
+            cancel,
+            title: title.into(),
+        })
+    }
+
+    /// Asks the job to stop at its next check.
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    /// The next message, if one is waiting; never waits.
+    pub fn try_next(&self) -> Option<JobMessage<T>> {
+        match self.messages.try_recv() {
+            Ok(message) => Some(message),
+            Err(mpsc::TryRecvError::Empty) => None,
+            Err(mpsc::TryRecvError::Disconnected) => Some(JobMessage::Failed(
+                "the job thread ended without a result".into(),
+            )),
+        }
+    }
+}
+
+/// Why a job stopped early.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum JobStop {
+    /// The operator cancelled it.
+    Cancelled,
+    /// It failed, with the reason.
+    Failed(String),
+}
+
+/// The job's end of the channel.
+pub struct JobContext<T> {
+    messages: mpsc::SyncSender<JobMessage<T>>,
+    cancel: Arc<AtomicBool>,
+}
+
+impl<T> JobContext<T> {
+    /// A context for running a job's work on the current thread (headless use, tests):
+    /// messages go to `messages`, and the work stops once `cancel` is set.
+    pub fn new(messages: mpsc::SyncSender<JobMessage<T>>, cancel: Arc<AtomicBool>) -> Self {
+        JobContext { messages, cancel }
+    }
+
+    /// Reports progress; a full queue skips this report (a newer one follows).
+    pub fn progress(&self, stage: &str, fraction: Option<f32>) {
+        let _ = self.messages.try_send(JobMessage::Progress(JobProgress {
+            stage: stage.to_string(),
+            fraction,
+        }));
+    }
+
+    /// `Err(JobStop::Cancelled)` once cancel was asked for.
+    pub fn check(&self) -> Result<(), JobStop> {
+        if self.cancel.load(Ordering::Relaxed) {
+            Err(JobStop::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+}
+
+/// What the Model lab asks for.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FitRequest {
+    /// The database (CSV v1).
+    pub data: PathBuf,
+    /// The column to explain.
+    pub target: String,
+    /// Terms in the `servosight fit` language.
+    pub terms: String,
+}
+
+/// A fit with its source, for the Model lab.
+#[derive(Debug, Clone)]
+pub struct FitOutcome {
+    /// What was asked.
+    pub request: FitRequest,
+    /// The report (statistics, coefficients, sensitivity ranking).
+    pub report: FitReport,
+}
+
+/// Counts bytes read, so reading a big file can report how far it is.
+struct CountingReader<R> {
+    inner: R,
+    read: Arc<AtomicU64>,
+}
+
+impl<R: Read> Read for CountingReader<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.read.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+}
+
+/// Reads the database and fits the model, reporting progress; cancellable while the file is
+/// read and between the fitting stages (a single QR of a million rows takes about half a
+/// second and is not interrupted).
+pub fn run_fit(
+    request: FitRequest,
+    context: &JobContext<FitOutcome>,
+) -> Result<FitOutcome, JobStop> {
+    let failed = |e: &dyn std::fmt::Display| JobStop::Failed(e.to_string());
+    let terms = parse_terms(&request.terms).map_err(|e| failed(&e))?;
+    if terms.is_empty() {
+        return Err(JobStop::Failed(
+            "the terms list only `const`: give at least one term to fit".into(),
+        ));
+    }
+    let file = std::fs::File::open(&request.data)
+        .map_err(|e| JobStop::Failed(format!("{}: {e}", request.data.display())))?;
+    let size = file.metadata().map(|m| m.len()).unwrap_or(0).max(1);
+    let read = Arc::new(AtomicU64::new(0));
+    let counting = CountingReader {
+        inner: file,
+        read: Arc::clone(&read),
+    };
+    let source = request.data.display().to_string();
+    let mut reader = RecordingReader::from_reader(counting, &source).map_err(|e| failed(&e))?;
+    let mut recording = Recording::with_schema(source.clone(), reader.schema().clone());
+    for (key, value) in reader.metadata().to_vec() {
+        recording.set_metadata(&key, &value);
+    }
+    let mut row = Vec::new();
+    let mut rows = 0u64;
+    context.progress("reading the database", Some(0.0));
+    while reader.read_row(&mut row).map_err(|e| failed(&e))? {
+        recording.push_row(&row).map_err(|e| failed(&e))?;
+        rows += 1;
+        if rows.is_multiple_of(8192) {
+            context.check()?;
+            let fraction = read.load(Ordering::Relaxed) as f32 / size as f32;
+            context.progress(
+                &format!("reading the database ({rows} rows)"),
+                Some(0.8 * fraction.min(1.0)),
+            );
+        }
+    }
+    context.check()?;
+    context.progress(&format!("building the design ({rows} rows)"), Some(0.8));
+    let design =
+        Design::from_recording(&recording, &request.target, &terms).map_err(|e| failed(&e))?;
+    drop(recording);
+    context.check()?;
+    context.progress("fitting (QR least squares)", Some(0.85));
+    let fit = ols(&design).map_err(|e| failed(&e))?;
+    context.check()?;
+    context.progress("sensitivity ranking", Some(0.95));
+    let report = FitReport::new(&fit, sensitivity(&fit, &design));
+    Ok(FitOutcome { request, report })
+}

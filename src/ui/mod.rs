@@ -1,0 +1,67 @@
+//! The HMI: an eframe/egui desktop app on the same link path as the headless tools.
+//!
+//! Threads and data flow (the rerun viewer's pattern):
+//! - [`session`]: a named worker thread owns the [`crate::link::ControllerLink`], the recorder
+//!   (every frame to disk at full rate) and the compensation audit log. The UI talks to it only
+//!   through bounded channels: [`session::SessionCommand`]s in, [`session::SessionUpdate`]s out.
+//! - [`app`]: on the UI thread, `logic` drains updates under a time budget into the
+//!   [`state::HmiState`]; `show` builds the open panel's view model ([`vm`]) and draws it
+//!   ([`panels`]); drawing returns [`panels::UiCommand`]s that the app carries out.
+//! - [`history`]: the in-memory decimation pyramid behind the Trends panel.
+//! - [`jobs`]: long work (fitting a model from a big database) on its own thread with progress
+//!   and cancel.
+//!
+//! With a calibrated machine profile the session runs the [`crate::estimators`] pipeline on
+//! every frame; its outputs (`est.*` columns: motor flange, bearing and nut temperatures,
+//! torque split, straightness per node and its ISO 1101 zone, spindle elongation) join the
+//! history, and the Overview judges them against the profile's limits.
+
+pub mod app;
+pub mod history;
+pub mod jobs;
+pub mod panels;
+pub mod session;
+pub mod state;
+pub mod vm;
+
+pub use app::{HmiApp, HmiOptions, Settings};
+pub use session::{Session, SessionConfig, SourceSpec};
+
+use eframe::egui;
+
+/// Why the HMI could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum UiError {
+    /// The session (link, recorder) could not start.
+    #[error(transparent)]
+    Session(#[from] session::SessionError),
+    /// The window could not be opened (no display, no OpenGL).
+    #[error("cannot open the HMI window: {0}")]
+    Window(String),
+}
+
+/// Opens the HMI window on a new session and runs until the window is closed.
+pub fn run(config: SessionConfig, options: HmiOptions) -> Result<(), UiError> {
+    let session = Session::start(config)?;
+    let size = options
+        .settings_path
+        .as_deref()
+        .map(Settings::load)
+        .and_then(|s| s.window_size)
+        .filter(|[w, h]| *w >= 400.0 && *h >= 300.0)
+        .unwrap_or([1280.0, 820.0]);
+    let native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title("servosight")
+            .with_app_id("servosight")
+            .with_inner_size(size)
+            .with_min_inner_size([640.0, 420.0]),
+        ..Default::default()
+    };
+    eframe::run_native(
+        "servosight",
+        native,
+        Box::new(move |_creation| Ok(Box::new(HmiApp::new(session, options)))),
+    )
+    .map_err(|e| UiError::Window(e.to_string()))
+}

@@ -1,0 +1,754 @@
+//! The session worker: the one place that owns the controller link, the recorder and the
+//! audit log, on its own named thread (`servosight-session`) with a small tokio runtime.
+//!
+//! The UI thread never touches the link: it sends [`SessionCommand`]s and drains
+//! [`SessionUpdate`]s, both through bounded channels and without ever waiting. The worker wakes
+//! on a frame, a command or a 100 ms tick; it writes every frame to disk first (full rate) and
+//! then forwards it to the UI. Commands that must wait for the controller (reading the
+//! compensation table, an approved push with its read-back) run here between wake-ups; the
+//! link keeps buffering frames meanwhile ([`crate::link::FRAME_CHANNEL_CAPACITY`] frames, four
+//! seconds at 1 kHz), so nothing is lost.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use tokio::sync::mpsc;
+
+use super::state::{
+    Event, EventKind, LinkSnapshot, PushResult, PushedValue, RecorderSnapshot, RecorderState,
+    Severity,
+};
+use crate::compensation::{
+    self, AuditEntry, AuditLog, CompensationLimits, CompensationValues, Credentials, Request, Role,
+};
+use crate::estimators::EstimatorPipeline;
+use crate::link::{
+    ConnectionState, ControllerLink, LinkError, ModbusConfig, Recorder, RecorderConfig,
+    ReplayOptions, ReplaySpeed,
+};
+use crate::profile::MachineProfile;
+use crate::signal::Schema;
+use crate::sim::TwinConfig;
+
+/// Where frames come from.
+#[derive(Debug, Clone)]
+pub enum SourceSpec {
+    /// The embedded physics twin, paced at `speed`.
+    Twin {
+        /// The twin's machine, program and rate.
+        config: Box<TwinConfig>,
+        /// Simulated seconds per wall-clock second.
+        speed: ReplaySpeed,
+    },
+    /// A recording replayed as if live.
+    Replay {
+        /// The CSV v1 file.
+        path: PathBuf,
+        /// Speed, pause and staleness.
+        options: ReplayOptions,
+    },
+    /// A controller over Modbus RTU.
+    Serial(ModbusConfig),
+}
+
+/// Everything the session needs.
+#[derive(Debug, Clone)]
+pub struct SessionConfig {
+    /// The source.
+    pub source: SourceSpec,
+    /// Record every frame into this directory (a new timestamped file per start); `None`
+    /// starts with the recorder off.
+    pub record_dir: Option<PathBuf>,
+    /// The users file (TOML with Argon2 hashes); read at every approval, so users added with
+    /// `servosight compensate set-user` count at once.
+    pub users_path: PathBuf,
+    /// The compensation audit log.
+    pub audit_path: PathBuf,
+    /// Compensation write limits.
+    pub limits: CompensationLimits,
+    /// The calibrated machine profile: its estimators run on every frame and their outputs
+    /// (`est.*` columns) follow the link's columns. `None` shows the servo signals only.
+    pub profile: Option<MachineProfile>,
+}
+
+/// Why a session could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The link could not be started (missing replay file, bad twin settings, …).
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// The worker thread could not be started.
+    #[error("cannot start the session thread: {0}")]
+    Thread(std::io::Error),
+    /// The worker is gone, or its command queue is full.
+    #[error("the session is not taking commands: {0}")]
+    NotTaking(&'static str),
+}
+
+/// What the UI asks the session to do.
+#[derive(Debug)]
+pub enum SessionCommand {
+    /// Read the controller's compensation table, the audit log and the users file again.
+    Refresh,
+    /// Check the approver's credential and, if it holds, push the request (bounded, written,
+    /// read back, verified, audited).
+    ApproveAndApply {
+        /// The operator's request.
+        request: Request,
+        /// Who approves.
+        approver: String,
+        /// Their password (kept only for the check).
+        password: String,
+    },
+    /// Record a refusal of the request in the audit log (the approver cancelled it).
+    Withdraw {
+        /// The request.
+        request: Request,
+        /// Why.
+        reason: String,
+    },
+    /// Switch the recorder on (new file) or off.
+    SetRecording(bool),
+}
+
+/// Frames the session forwards to the UI in one message.
+#[derive(Debug, Clone)]
+pub struct FrameBatch {
+    /// Rows in the link's schema order, `time_s` first.
+    pub rows: Vec<Vec<f64>>,
+    /// When the session received the first of them (for the sample-to-screen latency).
+    pub received_at: Instant,
+    /// Frames the UI never got because its queue was full (they are on disk).
+    pub dropped_before: u64,
+}
+
+/// What the session tells the UI.
+#[derive(Debug)]
+pub enum SessionUpdate {
+    /// New frames.
+    Frames(FrameBatch),
+    /// The link's state now.
+    Link(LinkSnapshot),
+    /// The recorder's state now.
+    Recorder(RecorderSnapshot),
+    /// The controller's compensation table, or why it cannot be read.
+    Compensation(Result<CompensationValues, String>),
+    /// The audit log, or why it cannot be read.
+    Audit(Result<Vec<AuditEntry>, String>),
+    /// The users file's names and roles, or why it cannot be read.
+    Users(Result<Vec<(String, Role)>, String>),
+    /// The approver's credential was refused; nothing was written.
+    ApprovalRefused {
+        /// The request.
+        request_id: String,
+        /// Why.
+        reason: String,
+    },
+    /// The push ended (verified or not).
+    PushFinished(PushResult),
+    /// Something worth an entry in the event list.
+    Event(Event),
+}
+
+/// The UI's handle on the session worker.
+pub struct Session {
+    schema: Schema,
+    source: String,
+    commands: mpsc::Sender<SessionCommand>,
+    updates: mpsc::Receiver<SessionUpdate>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+/// Messages queued from the session to the UI before it has to hold frames back.
+const UPDATE_CHANNEL_CAPACITY: usize = 8192;
+/// How often the link and recorder state are published and the recorder is flushed.
+const TICK: Duration = Duration::from_millis(100);
+/// Frames held for a UI that is not draining before the oldest are let go (they are on disk).
+const MAX_HELD_FRAMES: usize = 1 << 20;
+
+impl Session {
+    /// Starts the link and the worker thread.
+    pub fn start(config: SessionConfig) -> Result<Session, SessionError> {
+        let link = match &config.source {
+            SourceSpec::Twin { config, speed } => {
+                ControllerLink::twin((**config).clone(), *speed, Duration::from_secs(1))?
+            }
+            SourceSpec::Replay { path, options } => ControllerLink::replay(path, *options)?,
+            SourceSpec::Serial(modbus) => ControllerLink::modbus(modbus.clone())?,
+        };
+        let source = link.status().source;
+        // The estimators run here, beside the recorder (which keeps the link's own columns);
+        // a profile that does not fit this link is reported, and the servo signals still flow.
+        let (pipeline, pipeline_error) = match &config.profile {
+            None => (None, None),
+            Some(profile) => match EstimatorPipeline::new(profile, link.schema()) {
+                Ok(pipeline) => (Some(pipeline), None),
+                Err(error) => (
+                    None,
+                    Some(format!("estimators off ({}): {error}", profile.name)),
+                ),
+            },
+        };
+        let mut names = link.schema().names().to_vec();
+        if let Some(pipeline) = &pipeline {
+            names.extend(pipeline.outputs().into_iter().map(|o| o.column));
+        }
+        let schema = Schema::new(names, &source).map_err(LinkError::from)?;
+        let (command_tx, command_rx) = mpsc::channel(64);
+        let (update_tx, update_rx) = mpsc::channel(UPDATE_CHANNEL_CAPACITY);
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_time()
+            .build()
+            .map_err(SessionError::Thread)?;
+        let worker = Worker {
+            link,
+            recorder: None,
+            recorder_snapshot: RecorderSnapshot::off(),
+            record_dir: config.record_dir.clone(),
+            audit: None,
+            users_path: config.users_path.clone(),
+            audit_path: config.audit_path.clone(),
+            limits: config.limits,
+            updates: update_tx,
+            held: None,
+            dropped_frames: 0,
+            last_state: None,
+            compensation_read_once: false,
+            pipeline,
+            estimates: Vec::new(),
+        };
+        if let Some(error) = pipeline_error {
+            worker.event(EventKind::Condition, Severity::Warning, error);
+        }
+        let thread = std::thread::Builder::new()
+            .name("servosight-session".into())
+            .spawn(move || worker.run(&runtime, command_rx))
+            .map_err(SessionError::Thread)?;
+        Ok(Session {
+            schema,
+            source,
+            commands: command_tx,
+            updates: update_rx,
+            thread: Some(thread),
+        })
+    }
+
+    /// The link's columns, `time_s` first.
+    pub fn schema(&self) -> &Schema {
+        &self.schema
+    }
+
+    /// What the link reads from.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// Queues a command; never waits.
+    pub fn send(&self, command: SessionCommand) -> Result<(), SessionError> {
+        self.commands.try_send(command).map_err(|e| match e {
+            mpsc::error::TrySendError::Full(_) => SessionError::NotTaking("its queue is full"),
+            mpsc::error::TrySendError::Closed(_) => SessionError::NotTaking("it has ended"),
+        })
+    }
+
+    /// The next update if one is waiting; never waits.
+    pub fn try_recv(&mut self) -> Option<SessionUpdate> {
+        self.updates.try_recv().ok()
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        // Closing both channels ends the worker's loop; it finishes the recorder file and
+        // drops the link (which joins the link thread).
+        self.updates.close();
+        let (closed, _) = mpsc::channel(1);
+        self.commands = closed;
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+/// What woke the worker.
+enum Wake {
+    Frame(Option<crate::link::Frame>),
+    Command(Option<SessionCommand>),
+    Tick,
+}
+
+struct Worker {
+    link: ControllerLink,
+    recorder: Option<Recorder>,
+    recorder_snapshot: RecorderSnapshot,
+    record_dir: Option<PathBuf>,
+    audit: Option<AuditLog>,
+    users_path: PathBuf,
+    audit_path: PathBuf,
+    limits: CompensationLimits,
+    updates: mpsc::Sender<SessionUpdate>,
+    /// Frames the UI has not taken yet because its queue was full.
+    held: Option<FrameBatch>,
+    dropped_frames: u64,
+    last_state: Option<ConnectionState>,
+    compensation_read_once: bool,
+    /// The estimators, when a profile was given and fits the link.
+    pipeline: Option<EstimatorPipeline>,
+    /// Scratch row of estimator outputs.
+    estimates: Vec<f64>,
+}
+
+impl Worker {
+    fn run(
+        mut self,
+        runtime: &tokio::runtime::Runtime,
+        mut commands: mpsc::Receiver<SessionCommand>,
+    ) {
+        if self.record_dir.is_some() {
+            self.start_recording();
+        }
+        self.open_audit();
+        self.send_users();
+        let mut source_open = true;
+        let mut next_tick = tokio::time::Instant::now();
+        loop {
+            let link = &mut self.link;
+            let wake = runtime.block_on(async {
+                tokio::select! {
+                    biased;
+                    command = commands.recv() => Wake::Command(command),
+                    frame = link.next_frame(), if source_open => Wake::Frame(frame),
+                    _ = tokio::time::sleep_until(next_tick) => Wake::Tick,
+                }
+            });
+            match wake {
+                Wake::Command(None) => break,
+                Wake::Command(Some(command)) => self.handle(command),
+                Wake::Frame(None) => {
+                    source_open = false;
+                    self.publish_status();
+                }
+                Wake::Frame(Some(first)) => {
+                    let mut frames = vec![first];
+                    // Take what else is waiting, so a burst becomes one message.
+                    while frames.len() < 4096 {
+                        match self.link.try_next_frame() {
+                            Some(frame) => frames.push(frame),
+                            None => break,
+                        }
+                    }
+                    self.take_frames(frames);
+                }
+                Wake::Tick => {
+                    next_tick = tokio::time::Instant::now() + TICK;
+                    self.publish_status();
+                }
+            }
+            if self.updates.is_closed() {
+                break;
+            }
+        }
+        if let Some(recorder) = self.recorder.take() {
+            let _ = recorder.finish();
+        }
+    }
+
+    fn send(&self, update: SessionUpdate) {
+        // Status updates are re-sent every tick, so one lost to a full queue is replaced at
+        // once; frames never go this way (see `forward`).
+        let _ = self.updates.try_send(update);
+    }
+
+    fn event(&self, kind: EventKind, severity: Severity, message: impl Into<String>) {
+        self.send(SessionUpdate::Event(Event::now(kind, severity, message)));
+    }
+
+    fn take_frames(&mut self, frames: Vec<crate::link::Frame>) {
+        let received_at = Instant::now();
+        if let Some(recorder) = self.recorder.as_mut() {
+            let mut failure = None;
+            for frame in &frames {
+                if let Err(error) = recorder.record(frame) {
+                    failure = Some(error.to_string());
+                    break;
+                }
+            }
+            if let Some(error) = failure {
+                self.stop_recording(Some(error));
+            }
+        }
+        let mut rows: Vec<Vec<f64>> = frames.into_iter().map(|f| f.row).collect();
+        if let Some(pipeline) = self.pipeline.as_mut() {
+            for row in &mut rows {
+                pipeline.update(row);
+                pipeline.write_outputs(&mut self.estimates);
+                row.extend_from_slice(&self.estimates);
+            }
+        }
+        self.forward(rows, received_at);
+    }
+
+    /// Hands rows to the UI; when its queue is full they wait here (merged), and only beyond
+    /// [`MAX_HELD_FRAMES`] are the oldest let go and counted.
+    fn forward(&mut self, rows: Vec<Vec<f64>>, received_at: Instant) {
+        let mut batch = match self.held.take() {
+            Some(mut held) => {
+                held.rows.extend(rows);
+                held
+            }
+            None => FrameBatch {
+                rows,
+                received_at,
+                dropped_before: 0,
+            },
+        };
+        if batch.rows.len() > MAX_HELD_FRAMES {
+            let excess = batch.rows.len() - MAX_HELD_FRAMES;
+            batch.rows.drain(..excess);
+            self.dropped_frames += excess as u64;
+        }
+        if batch.rows.is_empty() {
+            return;
+        }
+        batch.dropped_before = std::mem::take(&mut self.dropped_frames);
+        match self.updates.try_send(SessionUpdate::Frames(batch)) {
+            Ok(()) => {}
+            Err(mpsc::error::TrySendError::Full(SessionUpdate::Frames(batch)))
+            | Err(mpsc::error::TrySendError::Closed(SessionUpdate::Frames(batch))) => {
+                self.dropped_frames += batch.dropped_before;
+                self.held = Some(batch);
+            }
+            Err(_) => {}
+        }
+    }
+
+    fn publish_status(&mut self) {
+        if self.held.is_some() {
+            self.forward(Vec::new(), Instant::now());
+        }
+        let status = self.link.status();
+        if self.last_state != Some(status.state) {
+            let (severity, text) = match status.state {
+                ConnectionState::Connected => (Severity::Normal, "connected".to_string()),
+                ConnectionState::Stale => (
+                    Severity::Warning,
+                    "stale: no fresh sample within the staleness limit".to_string(),
+                ),
+                ConnectionState::Disconnected => (
+                    Severity::Fault,
+                    format!(
+                        "disconnected{}",
+                        status
+                            .last_error
+                            .as_ref()
+                            .map(|e| format!(": {e}"))
+                            .unwrap_or_default()
+                    ),
+                ),
+            };
+            self.event(
+                EventKind::Link,
+                severity,
+                format!("{} {text}", status.source),
+            );
+            self.last_state = Some(status.state);
+            if status.state == ConnectionState::Connected && !self.compensation_read_once {
+                self.compensation_read_once = true;
+                self.send_compensation();
+            }
+        }
+        self.send(SessionUpdate::Link(LinkSnapshot::from_status(&status)));
+        if let Some(recorder) = self.recorder.as_mut() {
+            if let Err(error) = recorder.flush_if_due() {
+                self.stop_recording(Some(error.to_string()));
+            } else {
+                let stats = recorder.stats();
+                self.recorder_snapshot.rows = stats.rows;
+                self.recorder_snapshot.files = stats.files;
+                self.recorder_snapshot.frames_not_written = stats.frames_not_written;
+                self.recorder_snapshot.path =
+                    recorder.paths().last().map(|p| p.display().to_string());
+            }
+        }
+        self.send(SessionUpdate::Recorder(self.recorder_snapshot.clone()));
+    }
+
+    fn start_recording(&mut self) {
+        let Some(dir) = self.record_dir.clone() else {
+            self.event(
+                EventKind::Recorder,
+                Severity::Warning,
+                "no recording directory was given (--record-dir)",
+            );
+            return;
+        };
+        if let Err(error) = std::fs::create_dir_all(&dir) {
+            self.stop_recording(Some(format!("cannot create {}: {error}", dir.display())));
+            return;
+        }
+        let stamp: String = compensation::audit::utc_now()
+            .chars()
+            .map(|c| if c == ':' || c == '.' { '-' } else { c })
+            .collect();
+        let path = dir.join(format!("recording-{stamp}.csv"));
+        let mut config = RecorderConfig::new(&path);
+        config.metadata = vec![("source".into(), self.link.status().source)];
+        match Recorder::create(config, self.link.schema(), self.link.has_sequence()) {
+            Ok(recorder) => {
+                self.recorder = Some(recorder);
+                self.recorder_snapshot = RecorderSnapshot {
+                    state: RecorderState::Recording,
+                    path: Some(path.display().to_string()),
+                    rows: 0,
+                    files: 1,
+                    frames_not_written: 0,
+                    error: None,
+                };
+                self.event(
+                    EventKind::Recorder,
+                    Severity::Normal,
+                    format!("recording to {}", path.display()),
+                );
+            }
+            Err(error) => self.stop_recording(Some(error.to_string())),
+        }
+    }
+
+    fn stop_recording(&mut self, error: Option<String>) {
+        if let Some(recorder) = self.recorder.take() {
+            let stats = recorder.stats().clone();
+            self.recorder_snapshot.rows = stats.rows;
+            self.recorder_snapshot.frames_not_written = stats.frames_not_written;
+            if let Err(finish_error) = recorder.finish()
+                && error.is_none()
+            {
+                self.recorder_snapshot.error = Some(finish_error.to_string());
+            }
+        }
+        match error {
+            Some(error) => {
+                self.recorder_snapshot.state = RecorderState::Failed;
+                self.event(
+                    EventKind::Recorder,
+                    Severity::Fault,
+                    format!("recording stopped: {error}"),
+                );
+                self.recorder_snapshot.error = Some(error);
+            }
+            None => {
+                self.recorder_snapshot.state = RecorderState::Off;
+                self.event(EventKind::Recorder, Severity::Normal, "recording stopped");
+            }
+        }
+        self.send(SessionUpdate::Recorder(self.recorder_snapshot.clone()));
+    }
+
+    fn open_audit(&mut self) {
+        if let Some(parent) = self.audit_path.parent()
+            && !parent.as_os_str().is_empty()
+        {
+            let _ = std::fs::create_dir_all(parent);
+        }
+        match AuditLog::open(&self.audit_path) {
+            Ok(log) => {
+                self.audit = Some(log);
+                self.send_audit();
+            }
+            Err(error) => {
+                self.send(SessionUpdate::Audit(Err(error.to_string())));
+                self.event(
+                    EventKind::Write,
+                    Severity::Fault,
+                    format!("audit log unusable, compensation writes are blocked: {error}"),
+                );
+            }
+        }
+    }
+
+    fn send_audit(&self) {
+        let entries = match &self.audit {
+            Some(log) => log.entries().map_err(|e| e.to_string()),
+            None => Err(format!("{} could not be opened", self.audit_path.display())),
+        };
+        self.send(SessionUpdate::Audit(entries));
+    }
+
+    fn send_users(&self) {
+        let users = Credentials::load(&self.users_path)
+            .map(|c| c.users.into_iter().map(|u| (u.name, u.role)).collect())
+            .map_err(|e| e.to_string());
+        self.send(SessionUpdate::Users(users));
+    }
+
+    fn send_compensation(&self) {
+        let table = self
+            .link
+            .read_compensation()
+            .wait()
+            .map_err(|e| e.to_string());
+        self.send(SessionUpdate::Compensation(table));
+    }
+
+    fn handle(&mut self, command: SessionCommand) {
+        match command {
+            SessionCommand::Refresh => {
+                self.send_compensation();
+                self.send_audit();
+                self.send_users();
+            }
+            SessionCommand::SetRecording(on) => {
+                if on && self.recorder.is_none() {
+                    self.start_recording();
+                } else if !on && self.recorder.is_some() {
+                    self.stop_recording(None);
+                }
+            }
+            SessionCommand::Withdraw { request, reason } => {
+                let controller = self.link.status().source;
+                if let Some(audit) = self.audit.as_mut()
+                    && let Err(error) =
+                        compensation::record_refusal(audit, &request, None, &controller, &reason)
+                {
+                    self.event(EventKind::Write, Severity::Fault, error.to_string());
+                }
+                self.event(
+                    EventKind::Write,
+                    Severity::Normal,
+                    format!("request {} withdrawn: {reason}", request.id()),
+                );
+                self.send_audit();
+            }
+            SessionCommand::ApproveAndApply {
+                request,
+                approver,
+                password,
+            } => {
+                self.approve_and_apply(request, &approver, &password);
+                self.send_compensation();
+                self.send_audit();
+            }
+        }
+    }
+
+    fn approve_and_apply(&mut self, request: Request, approver: &str, password: &str) {
+        // The log is taken out for the push so that events can be sent meanwhile.
+        if let Some(mut audit) = self.audit.take() {
+            self.approve_and_apply_logged(&mut audit, request, approver, password);
+            self.audit = Some(audit);
+        } else {
+            self.send(SessionUpdate::ApprovalRefused {
+                request_id: request.id().to_string(),
+                reason: format!(
+                    "the audit log {} is not usable, so nothing may be written",
+                    self.audit_path.display()
+                ),
+            });
+        }
+    }
+
+    fn approve_and_apply_logged(
+        &mut self,
+        audit: &mut AuditLog,
+        request: Request,
+        approver: &str,
+        password: &str,
+    ) {
+        let controller = self.link.status().source;
+        let refused = |audit: &mut AuditLog, reason: String| {
+            let recorded =
+                compensation::record_refusal(audit, &request, Some(approver), &controller, &reason);
+            match recorded {
+                Ok(_) => reason,
+                Err(error) => format!("{reason} (and the audit log failed: {error})"),
+            }
+        };
+        let credentials = match Credentials::load(&self.users_path) {
+            Ok(credentials) => credentials,
+            Err(error) => {
+                let reason = refused(audit, format!("cannot read the users file: {error}"));
+                self.send(SessionUpdate::ApprovalRefused {
+                    request_id: request.id().to_string(),
+                    reason,
+                });
+                return;
+            }
+        };
+        let approved = match request.approve(&credentials, approver, password) {
+            Ok(approved) => approved,
+            Err(error) => {
+                let reason = refused(audit, error.to_string());
+                self.event(
+                    EventKind::Write,
+                    Severity::Warning,
+                    format!("request {}: approval refused: {reason}", request.id()),
+                );
+                self.send(SessionUpdate::ApprovalRefused {
+                    request_id: request.id().to_string(),
+                    reason,
+                });
+                return;
+            }
+        };
+        self.event(
+            EventKind::Write,
+            Severity::Normal,
+            format!(
+                "request {} by {} approved by {approver}; writing",
+                request.id(),
+                request.operator()
+            ),
+        );
+        let changes = request.proposal().changes.clone();
+        let result = compensation::apply(&self.link, &self.limits, audit, approved);
+        let read_back = self.link.read_compensation().wait().ok();
+        let pushed = |old: Option<&CompensationValues>| -> Vec<PushedValue> {
+            changes
+                .iter()
+                .map(|(id, requested)| PushedValue {
+                    id: id.to_string(),
+                    old_um: old.and_then(|o| o.get(id)),
+                    requested_um: requested,
+                    read_back_um: read_back.as_ref().and_then(|r| r.get(id)),
+                })
+                .collect()
+        };
+        let result = match result {
+            Ok(report) => {
+                let message = if report.steps == 0 {
+                    "nothing to write: the controller already applies these values".to_string()
+                } else {
+                    format!(
+                        "written in {} step(s), read back and verified",
+                        report.steps
+                    )
+                };
+                PushResult {
+                    request_id: report.request_id.clone(),
+                    action: request.proposal().action.clone(),
+                    verified: true,
+                    steps: report.steps,
+                    values: pushed(Some(&report.old)),
+                    message,
+                }
+            }
+            Err(error) => PushResult {
+                request_id: request.id().to_string(),
+                action: request.proposal().action.clone(),
+                verified: false,
+                steps: 0,
+                values: pushed(None),
+                message: error.to_string(),
+            },
+        };
+        self.event(
+            EventKind::Write,
+            if result.verified {
+                Severity::Normal
+            } else {
+                Severity::Fault
+            },
+            format!("request {}: {}", result.request_id, result.message),
+        );
+        self.send(SessionUpdate::PushFinished(result));
+    }
+}

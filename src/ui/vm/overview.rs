@@ -1,0 +1,281 @@
+//! The Overview: one card per axis with its live servo readings and a normal / warning / fault
+//! light with the reasons.
+
+use serde::Serialize;
+
+use super::{channel_label, number, quantity_label};
+use crate::link::ConnectionState;
+use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
+use crate::signal::{AxisId, Quantity};
+use crate::ui::state::{HmiState, Severity};
+
+/// One reading on a card.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Reading {
+    /// "stator temperature".
+    pub label: String,
+    /// "41.3".
+    pub value: String,
+    /// "°C".
+    pub unit: String,
+    /// How the value compares with its limits (normal when it has none).
+    pub severity: Severity,
+}
+
+/// The light of a card and why it shows that colour.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Light {
+    /// The worst of the reasons.
+    pub severity: Severity,
+    /// Every reason, worst first.
+    pub reasons: Vec<String>,
+}
+
+/// One axis.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AxisCard {
+    /// "X".
+    pub axis: String,
+    /// "X — linear feed axis".
+    pub title: String,
+    /// The light.
+    pub light: Light,
+    /// The live readings.
+    pub readings: Vec<Reading>,
+    /// True when the readings are the last known ones, not live (link stale or down).
+    pub readings_are_old: bool,
+}
+
+/// The Overview.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OverviewView {
+    /// The machine's overall light (the worst card).
+    pub machine: Light,
+    /// One card per axis the link carries.
+    pub cards: Vec<AxisCard>,
+    /// Machine-level readings (room temperature, coolant, depth of cut).
+    pub machine_readings: Vec<Reading>,
+}
+
+/// Judges one axis: link state, then its readings against the thresholds. The Overview's
+/// light and the condition events both come from here.
+pub fn axis_condition(state: &HmiState, axis: AxisId) -> Light {
+    let mut reasons: Vec<(Severity, String)> = Vec::new();
+    match state.link.state {
+        ConnectionState::Connected => {}
+        ConnectionState::Stale => reasons.push((
+            Severity::Warning,
+            format!(
+                "link stale: last sample {} s ago, values are not live",
+                number(state.link.last_frame_age_s, 1)
+            ),
+        )),
+        ConnectionState::Disconnected => reasons.push((
+            Severity::Fault,
+            format!(
+                "link disconnected{}",
+                state
+                    .link
+                    .last_error
+                    .as_ref()
+                    .map(|e| format!(": {e}"))
+                    .unwrap_or_default()
+            ),
+        )),
+    }
+    if state.latest.row.is_empty() {
+        reasons.push((Severity::Warning, "no data received yet".into()));
+    }
+    let limits = state.thresholds.stator_temp_c;
+    if let Some(stator) = state.latest.servo(axis, Quantity::StatorTemp) {
+        if stator >= limits.fault {
+            reasons.push((
+                Severity::Fault,
+                format!(
+                    "stator {stator:.1} °C at or above the fault limit {:.0} °C",
+                    limits.fault
+                ),
+            ));
+        } else if stator >= limits.warning {
+            reasons.push((
+                Severity::Warning,
+                format!(
+                    "stator {stator:.1} °C at or above the warning limit {:.0} °C",
+                    limits.warning
+                ),
+            ));
+        }
+    }
+    for (reading, severity, limit) in estimate_readings(state, axis) {
+        if let Some(limit) = limit.filter(|_| severity != Severity::Normal) {
+            let word = if severity == Severity::Fault {
+                "fault"
+            } else {
+                "warning"
+            };
+            reasons.push((
+                severity,
+                format!(
+                    "{} {} {} at or above the {word} limit {limit:.0} {}",
+                    reading.label, reading.value, reading.unit, reading.unit
+                ),
+            ));
+        }
+    }
+    reasons.sort_by_key(|r| std::cmp::Reverse(r.0));
+    let severity = reasons.first().map_or(Severity::Normal, |r| r.0);
+    let reasons = if reasons.is_empty() {
+        vec!["all readings within limits".to_string()]
+    } else {
+        reasons.into_iter().map(|r| r.1).collect()
+    };
+    Light { severity, reasons }
+}
+
+/// The estimates of one axis worth a card line (temperatures, elongation, straightness zones),
+/// each judged against the profile's limits: the reading, its severity and the limit crossed.
+fn estimate_readings(state: &HmiState, axis: AxisId) -> Vec<(Reading, Severity, Option<f64>)> {
+    let prefix = format!("{}{axis}.", super::ESTIMATE_PREFIX);
+    let limits = state.estimate_limits.get(&axis);
+    state
+        .latest
+        .names
+        .iter()
+        .filter_map(|name| {
+            let quantity = name.strip_prefix(&prefix)?;
+            let shown = quantity.ends_with("_temp_C")
+                || quantity == "elongation_um"
+                || quantity.ends_with("_zone_um");
+            if !shown {
+                return None;
+            }
+            let value = state.latest.get(name);
+            let threshold = limits.and_then(|l| match quantity {
+                "motor_flange_temp_C" => Some(l.motor_temp_C),
+                "front_bearing_temp_C" | "back_bearing_temp_C" => Some(l.bearing_temp_C),
+                "nut_temp_C" => Some(l.nut_temp_C),
+                "elongation_um" => l.elongation_um,
+                _ => None,
+            });
+            let magnitude = value.map(f64::abs);
+            let (severity, limit) = match (threshold, magnitude) {
+                (Some(t), Some(v)) if v >= t.fault => (Severity::Fault, Some(t.fault)),
+                (Some(t), Some(v)) if v >= t.warning => (Severity::Warning, Some(t.warning)),
+                _ => (Severity::Normal, None),
+            };
+            let label = super::channel_label(name);
+            Some((
+                Reading {
+                    label: label.trim_start_matches(&format!("{axis} ")).to_string(),
+                    value: number(value, 1),
+                    unit: super::unit(name),
+                    severity,
+                },
+                severity,
+                limit,
+            ))
+        })
+        .collect()
+}
+
+fn stator_severity(state: &HmiState, value: Option<f64>) -> Severity {
+    let limits = state.thresholds.stator_temp_c;
+    match value {
+        Some(v) if v >= limits.fault => Severity::Fault,
+        Some(v) if v >= limits.warning => Severity::Warning,
+        _ => Severity::Normal,
+    }
+}
+
+/// Builds the Overview.
+pub fn build(state: &HmiState) -> OverviewView {
+    let old = state.link.state != ConnectionState::Connected;
+    let cards: Vec<AxisCard> = state
+        .latest
+        .axes()
+        .into_iter()
+        .map(|axis| {
+            let kind = if axis == AxisId::S {
+                "spindle"
+            } else if axis.is_linear() {
+                "linear feed axis"
+            } else {
+                "rotary axis"
+            };
+            let readings = [
+                (Quantity::StatorTemp, 1),
+                (Quantity::Load, 1),
+                (Quantity::Torque, 2),
+                (Quantity::Current, 2),
+                (Quantity::Speed, 0),
+                (Quantity::Position, 3),
+            ]
+            .into_iter()
+            .filter(|(q, _)| {
+                state
+                    .latest
+                    .names
+                    .contains(&crate::signal::axis_column(axis, *q))
+            })
+            .map(|(quantity, decimals)| {
+                let name = crate::signal::axis_column(axis, quantity);
+                let value = state.latest.servo(axis, quantity);
+                Reading {
+                    label: quantity_label(quantity).to_string(),
+                    value: number(value, decimals),
+                    unit: super::unit(&name),
+                    severity: if quantity == Quantity::StatorTemp {
+                        stator_severity(state, value)
+                    } else {
+                        Severity::Normal
+                    },
+                }
+            })
+            .chain(estimate_readings(state, axis).into_iter().map(|r| r.0))
+            .collect();
+            AxisCard {
+                axis: axis.to_string(),
+                title: format!("{axis} — {kind}"),
+                light: axis_condition(state, axis),
+                readings,
+                readings_are_old: old,
+            }
+        })
+        .collect();
+    let machine_readings = [(AMBIENT, 1), (COOLANT, 0), (CUT_DEPTH, 2)]
+        .into_iter()
+        .filter(|(name, _)| state.latest.names.iter().any(|n| n == name))
+        .map(|(name, decimals)| {
+            let value = state.latest.get(name);
+            Reading {
+                label: channel_label(name),
+                value: if name == COOLANT {
+                    match value {
+                        Some(v) if v >= 0.5 => "on".into(),
+                        Some(_) => "off".into(),
+                        None => "–".into(),
+                    }
+                } else {
+                    number(value, decimals)
+                },
+                unit: if name == COOLANT {
+                    String::new()
+                } else {
+                    super::unit(name)
+                },
+                severity: Severity::Normal,
+            }
+        })
+        .collect();
+    let machine = cards
+        .iter()
+        .map(|c| &c.light)
+        .max_by_key(|l| l.severity)
+        .cloned()
+        .unwrap_or_else(|| axis_condition(state, AxisId::X));
+    OverviewView {
+        machine,
+        cards,
+        machine_readings,
+    }
+}

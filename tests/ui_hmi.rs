@@ -1,0 +1,450 @@
+//! The real widgets, driven through egui_kittest (no renderer): the compensation approval flow
+//! on the embedded twin — a wrong credential is refused and writes nothing, the right one
+//! writes and shows the read-back — plus the Trends and Events panels' controls.
+
+use std::time::{Duration, Instant};
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use servosight::compensation::{
+    AuditLog, CompensationId, CompensationLimits, Credentials, Outcome, Role as UserRole,
+};
+use servosight::link::{ConnectionState, ReplaySpeed};
+use servosight::signal::AxisId;
+use servosight::sim::{ScenarioKind, TwinConfig};
+use servosight::ui::panels::Tab;
+use servosight::ui::state::{PushFlow, StatusThresholds};
+use servosight::ui::{HmiApp, HmiOptions, Session, SessionConfig, SourceSpec};
+
+struct Fixture {
+    _dir: tempfile::TempDir,
+    audit_path: std::path::PathBuf,
+    record_dir: std::path::PathBuf,
+    harness: Harness<'static, HmiApp>,
+}
+
+fn twin_profile() -> servosight::profile::MachineProfile {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/it25-twin.toml");
+    servosight::profile::MachineProfile::load(std::path::Path::new(path)).expect("twin profile")
+}
+
+fn start() -> Fixture {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let users_path = dir.path().join("users.toml");
+    let audit_path = dir.path().join("audit.jsonl");
+    let record_dir = dir.path().join("recordings");
+    let mut credentials = Credentials::default();
+    credentials
+        .set_user("otto", UserRole::Operator, "otto-pw")
+        .expect("hash");
+    credentials
+        .set_user("maria", UserRole::Approver, "maria-pw")
+        .expect("hash");
+    credentials.save(&users_path).expect("users file");
+    let mut twin = TwinConfig::new(ScenarioKind::Production, None, 7);
+    twin.rate_hz = 20.0;
+    let config = SessionConfig {
+        source: SourceSpec::Twin {
+            config: Box::new(twin),
+            speed: ReplaySpeed::Factor(1.0),
+        },
+        record_dir: Some(record_dir.clone()),
+        users_path: users_path.clone(),
+        audit_path: audit_path.clone(),
+        limits: CompensationLimits::default(),
+        profile: Some(twin_profile()),
+    };
+    let session = Session::start(config).expect("session starts");
+    let app = HmiApp::new(
+        session,
+        HmiOptions {
+            settings_path: None,
+            history_budget_bytes: 16 << 20,
+            thresholds: StatusThresholds::default(),
+            estimate_limits: twin_profile()
+                .axes
+                .iter()
+                .map(|(axis, a)| (*axis, a.limits.clone()))
+                .collect(),
+            users_path,
+            audit_path: audit_path.clone(),
+            limits: CompensationLimits::default(),
+            ingest_budget: Duration::from_millis(4),
+        },
+    );
+    let harness = Harness::builder()
+        .with_size([1400.0, 1000.0])
+        .build_ui_state(
+            |ui, app: &mut HmiApp| {
+                let ctx = ui.ctx().clone();
+                app.logic(&ctx);
+                app.show(ui);
+            },
+            app,
+        );
+    Fixture {
+        _dir: dir,
+        audit_path,
+        record_dir,
+        harness,
+    }
+}
+
+/// Steps the UI until `done` holds (the session answers on its own thread).
+fn step_until(harness: &mut Harness<'static, HmiApp>, what: &str, done: impl Fn(&HmiApp) -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        harness.step();
+        if done(harness.state()) {
+            return;
+        }
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn type_into(harness: &mut Harness<'static, HmiApp>, label: &str, text: &str) {
+    harness.get_by_label(label).focus();
+    harness.step();
+    harness.step();
+    harness.get_by_label(label).type_text(text);
+    harness.step();
+}
+
+/// Clicks a widget (through AccessKit, as assistive technology does, so a dialog that is still
+/// settling its position cannot make the click miss) and lets three frames pass: the click's
+/// frame carries out the command, the next lays out its result (a new dialog is measured
+/// invisibly first), the third shows it.
+fn click(harness: &mut Harness<'static, HmiApp>, label: &str) {
+    harness.get_by_label(label).click_accesskit();
+    settle(harness);
+}
+
+fn settle(harness: &mut Harness<'static, HmiApp>) {
+    for _ in 0..3 {
+        harness.step();
+    }
+}
+
+/// True when some widget shows `text` (as its label or, for plain labels, its value).
+fn shows(harness: &Harness<'static, HmiApp>, text: &str) -> bool {
+    harness
+        .query_all_by(|node| {
+            node.label().is_some_and(|l| l.contains(text))
+                || node.value().is_some_and(|v| v.contains(text))
+        })
+        .next()
+        .is_some()
+}
+
+fn backlash_x(app: &HmiApp) -> Option<f64> {
+    app.state
+        .compensation
+        .controller
+        .as_ref()
+        .and_then(|t| t.get(CompensationId::Backlash(AxisId::X)))
+}
+
+#[test]
+fn approval_refuses_a_wrong_credential_and_writes_with_the_right_one() {
+    let mut f = start();
+    let h = &mut f.harness;
+    step_until(h, "live data, users and the controller table", |app| {
+        app.state.link.state == ConnectionState::Connected
+            && app.state.compensation.controller.is_some()
+            && !app.state.compensation.users.is_empty()
+    });
+    assert_eq!(backlash_x(h.state()), Some(0.0));
+
+    click(h, "Compensation");
+    assert_eq!(h.state().settings.tab, Tab::Compensation);
+    // The first value in the list (backlash.X) is preselected.
+    type_into(h, "New value [µm]", "4");
+    click(h, "Add change");
+    assert!(shows(h, "backlash.X = 4.0 µm"));
+    type_into(h, "Why", "backlash grew at shift start");
+    type_into(h, "Evidence", "backlash test on the twin");
+    type_into(h, "Operator", "otto");
+    click(h, "Request push");
+    assert!(matches!(
+        h.state().state.compensation.flow,
+        PushFlow::AwaitingApproval { .. }
+    ));
+    assert!(shows(h, "Approve compensation push"));
+
+    // Wrong password: refused, nothing written.
+    type_into(h, "Approver", "maria");
+    type_into(h, "Password", "not-her-password");
+    click(h, "Approve and write");
+    step_until(h, "the refusal", |app| {
+        matches!(
+            &app.state.compensation.flow,
+            PushFlow::AwaitingApproval {
+                refusal: Some(_),
+                ..
+            }
+        )
+    });
+    h.step();
+    assert!(
+        shows(
+            h,
+            "Refused: not approved: unknown user or wrong password for `maria`"
+        ),
+        "the dialog shows the refusal"
+    );
+    h.get_by_label("Refresh").click();
+    step_until(h, "the audit log after the refusal", |app| {
+        !app.state.compensation.audit.is_empty()
+    });
+    assert_eq!(backlash_x(h.state()), Some(0.0), "nothing was written");
+
+    // The right password: written, read back and shown.
+    type_into(h, "Password", "maria-pw");
+    click(h, "Approve and write");
+    step_until(h, "the push result", |app| {
+        matches!(app.state.compensation.flow, PushFlow::Finished(_))
+    });
+    let PushFlow::Finished(result) = &h.state().state.compensation.flow else {
+        unreachable!("checked above");
+    };
+    assert!(result.verified, "{result:?}");
+    assert_eq!(result.values[0].read_back_um, Some(4.0));
+    step_until(h, "the new controller table", |app| {
+        backlash_x(app) == Some(4.0)
+    });
+    h.step();
+    assert!(
+        shows(h, "read back and verified"),
+        "the panel shows the verified read-back"
+    );
+    assert!(shows(h, "Roll back"));
+
+    let entries = AuditLog::open(&f.audit_path)
+        .expect("audit log")
+        .entries()
+        .expect("verified chain");
+    let outcomes: Vec<Outcome> = entries.iter().map(|e| e.outcome).collect();
+    assert_eq!(outcomes, vec![Outcome::Refused, Outcome::Applied]);
+    assert_eq!(entries[1].approver.as_deref(), Some("maria"));
+
+    // Roll back through the same dialog.
+    click(h, "Close result");
+    h.get_by_label_contains("Roll back").click();
+    settle(h);
+    assert!(matches!(
+        h.state().state.compensation.flow,
+        PushFlow::AwaitingApproval { .. }
+    ));
+    type_into(h, "Password", "maria-pw");
+    click(h, "Approve and write");
+    step_until(h, "the rollback", |app| {
+        matches!(app.state.compensation.flow, PushFlow::Finished(_)) && backlash_x(app) == Some(0.0)
+    });
+    assert!(
+        std::fs::read_dir(&f.record_dir)
+            .expect("recordings")
+            .next()
+            .is_some(),
+        "the session records to disk"
+    );
+}
+
+#[test]
+fn cancelling_the_dialog_writes_nothing_and_is_audited() {
+    let mut f = start();
+    let h = &mut f.harness;
+    step_until(h, "live data", |app| {
+        app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
+    });
+    click(h, "Compensation");
+    type_into(h, "New value [µm]", "2.5");
+    click(h, "Add change");
+    type_into(h, "Why", "test");
+    type_into(h, "Operator", "otto");
+    click(h, "Request push");
+    click(h, "Cancel request");
+    assert!(matches!(h.state().state.compensation.flow, PushFlow::Idle));
+    h.get_by_label("Refresh").click();
+    step_until(h, "the withdrawal in the audit log", |app| {
+        app.state.compensation.audit.len() == 1
+    });
+    assert_eq!(
+        h.state().state.compensation.audit[0].outcome,
+        Outcome::Refused
+    );
+    assert_eq!(backlash_x(h.state()), Some(0.0));
+}
+
+#[test]
+fn an_operator_who_is_not_a_user_cannot_request() {
+    let mut f = start();
+    let h = &mut f.harness;
+    step_until(h, "users", |app| {
+        app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
+    });
+    click(h, "Compensation");
+    type_into(h, "New value [µm]", "1");
+    click(h, "Add change");
+    type_into(h, "Why", "test");
+    type_into(h, "Operator", "mallory");
+    click(h, "Request push");
+    assert!(matches!(h.state().state.compensation.flow, PushFlow::Idle));
+    assert!(shows(h, "`mallory` is not a user"));
+}
+
+#[test]
+fn trends_and_events_controls_work() {
+    let mut f = start();
+    let h = &mut f.harness;
+    step_until(h, "some history", |app| app.state.history.samples() > 5);
+    // The estimators run on the live frames: the Overview shows their outputs.
+    settle(h);
+    assert!(shows(h, "nut temperature (estimated)"));
+    assert!(shows(h, "elongation (estimated)"));
+    click(h, "Trends");
+    // The stator temperatures are drawn on first start; add the X load.
+    let before = h.state().settings.trends.selected.len();
+    assert!(before >= 2);
+    click(h, "X load [%]");
+    assert_eq!(h.state().settings.trends.selected.len(), before + 1);
+    click(h, "1 h");
+    assert_eq!(
+        h.state().settings.trends.preset,
+        servosight::ui::vm::trends::WindowPreset::Hour
+    );
+    click(h, "Export CSV");
+    assert!(shows(h, "rows written to"));
+
+    click(h, "Events");
+    assert!(shows(h, "embedded twin connected"));
+    h.get_by_label_contains("link (").click();
+    settle(h);
+    assert!(!shows(h, "embedded twin connected"));
+}
+
+/// A DOE database from the twin, written as CSV v1.
+fn database(dir: &std::path::Path, hours: f64) -> std::path::PathBuf {
+    let path = dir.join("doe.csv");
+    let recording = servosight::sim::simulate(TwinConfig::new(ScenarioKind::Doe, Some(hours), 1))
+        .expect("the twin runs");
+    servosight::signal::write_recording(&path, &recording).expect("database written");
+    path
+}
+
+#[test]
+fn the_model_lab_fits_off_the_ui_thread_and_shows_the_ranking() {
+    let mut f = start();
+    let data = database(f._dir.path(), 1.0);
+    let h = &mut f.harness;
+    click(h, "Model lab");
+    type_into(h, "Database (CSV v1)", data.to_str().expect("utf-8 path"));
+    type_into(h, "Target column", "ref.X.motor_flange_temp_C");
+    type_into(h, "Terms", "X.stator_temp_C, X.speed_rpm, ambient_C");
+    click(h, "Fit");
+    step_until(h, "the fit", |app| {
+        app.state.model_lab.result.is_some() || app.state.model_lab.error.is_some()
+    });
+    settle(h);
+    let lab = &h.state().state.model_lab;
+    assert_eq!(lab.error, None);
+    let report = &lab.result.as_ref().expect("a result").report;
+    assert_eq!(report.n, 3601, "0 s to 3600 s inclusive");
+    // The same numbers as the library computes directly from the file.
+    let recording = servosight::signal::read_recording(&data).expect("database reads");
+    let terms =
+        servosight::fit::parse_terms("X.stator_temp_C, X.speed_rpm, ambient_C").expect("terms");
+    let design =
+        servosight::fit::Design::from_recording(&recording, "ref.X.motor_flange_temp_C", &terms)
+            .expect("design");
+    let direct = servosight::fit::ols(&design).expect("fit");
+    assert_eq!(report.r2, direct.r2);
+    assert_eq!(report.coefficients, direct.coefficients);
+    assert_eq!(report.sensitivity[0].rank, 1);
+    assert!(shows(h, "Sensitivity ranking"));
+    assert!(shows(h, &format!("n = {}", report.n)));
+}
+
+#[test]
+fn a_cancelled_fit_stops_while_reading() {
+    use servosight::ui::jobs::{FitRequest, JobContext, JobStop, run_fit};
+    use std::sync::{Arc, atomic::AtomicBool};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = database(dir.path(), 3.0);
+    let request = FitRequest {
+        data,
+        target: "ref.X.motor_flange_temp_C".into(),
+        terms: "X.stator_temp_C".into(),
+    };
+    let (tx, rx) = std::sync::mpsc::sync_channel(1024);
+    let cancelled = JobContext::new(tx.clone(), Arc::new(AtomicBool::new(true)));
+    assert_eq!(
+        run_fit(request.clone(), &cancelled).err(),
+        Some(JobStop::Cancelled)
+    );
+    let running = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
+    let outcome = run_fit(request, &running).expect("the fit runs");
+    assert_eq!(outcome.report.n, 10_801, "0 s to 10800 s inclusive");
+    let stages: Vec<String> = rx
+        .try_iter()
+        .filter_map(|m| match m {
+            servosight::ui::jobs::JobMessage::Progress(p) => Some(p.stage),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        stages.iter().any(|s| s.starts_with("reading")),
+        "{stages:?}"
+    );
+    assert!(
+        stages.iter().any(|s| s.starts_with("fitting")),
+        "{stages:?}"
+    );
+}
+
+#[test]
+fn the_hmi_command_reports_a_bad_source_before_opening_a_window() {
+    use crate::common::{servosight, stderr};
+    let output = servosight(&["--replay", "/nonexistent/day.csv"]);
+    assert!(!output.status.success());
+    let message = stderr(&output);
+    assert_eq!(message.lines().count(), 1, "{message}");
+    assert!(message.contains("/nonexistent/day.csv"), "{message}");
+    let both = servosight(&["--replay", "a.csv", "--port", "/dev/null"]);
+    assert!(!both.status.success());
+    assert!(
+        stderr(&both).contains("cannot be used with"),
+        "{}",
+        stderr(&both)
+    );
+    let with_subcommand = servosight(&["--speed", "2", "inspect", "a.csv"]);
+    assert!(!with_subcommand.status.success());
+}
+
+#[test]
+fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
+    use servosight::ui::Settings;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("config").join("hmi.json");
+    assert_eq!(Settings::load(&path), Settings::default(), "no file yet");
+    let mut settings = Settings {
+        tab: Tab::Trends,
+        dark: false,
+        window_size: Some([1200.0, 700.0]),
+        ..Settings::default()
+    };
+    settings.trends.selected = vec!["X.load_pct".into()];
+    settings.forms.operator = "otto".into();
+    settings.forms.password = "never saved".into();
+    settings.save(&path).expect("saved");
+    let text = std::fs::read_to_string(&path).expect("written");
+    assert!(!text.contains("never saved"), "passwords are not persisted");
+    let back = Settings::load(&path);
+    assert_eq!(back.tab, Tab::Trends);
+    assert!(!back.dark);
+    assert_eq!(back.window_size, Some([1200.0, 700.0]));
+    assert_eq!(back.trends.selected, vec!["X.load_pct".to_string()]);
+    assert_eq!(back.forms.operator, "otto");
+    std::fs::write(&path, "{ not json").expect("written");
+    assert_eq!(Settings::load(&path), Settings::default());
+}
