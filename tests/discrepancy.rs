@@ -512,6 +512,67 @@ fn explore_one_seed_per_effect() {
     }
 }
 
+/// Writes one case's recordings and report for offline study:
+/// `DISCREPANCY_DUMP=<effect id>[+<effect id>],<seed>,<white|correlated>,<hours>` and
+/// `DISCREPANCY_DUMP_DIR=<dir>`; the effect list may be `nothing` for a negative control on
+/// `DISCREPANCY_TARGET`.
+#[test]
+#[ignore = "exploration: dumps one case to CSV and JSON"]
+fn dump_one_case() {
+    let Ok(spec) = std::env::var("DISCREPANCY_DUMP") else {
+        return;
+    };
+    let dir = std::path::PathBuf::from(
+        std::env::var("DISCREPANCY_DUMP_DIR").unwrap_or_else(|_| "/tmp/discrepancy".into()),
+    );
+    std::fs::create_dir_all(&dir).unwrap();
+    let parts: Vec<&str> = spec.split(',').collect();
+    let seed: u64 = parts[1].parse().unwrap();
+    let noise = if parts[2] == "white" {
+        Noise::White
+    } else {
+        Noise::Correlated
+    };
+    let hours: f64 = parts[3].parse().unwrap();
+    let effects: Vec<Effect> = parts[0]
+        .split('+')
+        .filter(|e| *e != "nothing")
+        .map(|e| e.parse().unwrap())
+        .collect();
+    let case = match effects.len() {
+        0 => Case {
+            omitted: vec![],
+            target: std::env::var("DISCREPANCY_TARGET").unwrap(),
+            machine: vec![],
+            real_only: vec![],
+            noise,
+            hours,
+            seed,
+        },
+        1 => case_for(effects[0], seed, noise, hours),
+        _ => two_effect_cases(seed, noise)
+            .into_iter()
+            .find(|c| c.omitted == effects)
+            .unwrap(),
+    };
+    let pair = make_pair(&case);
+    for (name, recording) in [
+        ("sim.csv", &pair.sim),
+        ("real.csv", &pair.real),
+        ("real_clean.csv", &pair.real_clean),
+    ] {
+        servosight::signal::write_recording(&dir.join(name), recording).unwrap();
+    }
+    let (outcome, checks) = verify_case(&case, &Options::default());
+    print_outcome(&outcome);
+    eprintln!("{case:?}\nnoise sigma {}\n{:?}", pair.noise_sigma, checks);
+    std::fs::write(
+        dir.join("report.json"),
+        serde_json::to_string_pretty(&outcome.report).unwrap(),
+    )
+    .unwrap();
+}
+
 /// The held-out RMSE the default run allows, over the noise σ. The criterion is 1.5×; the heat
 /// paths of copper loss, speed-dependent cooling and coolant on the spindle run through a
 /// five-node network whose convection changes with speed, which two fitted lags (with the

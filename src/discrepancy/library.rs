@@ -209,6 +209,11 @@ pub struct Family {
     pub lagged: bool,
     /// Axis the correction belongs to, for explanations.
     pub axis: Option<AxisId>,
+    /// Built from the target's own state (its excess over room, its warmth), which the
+    /// missing physics itself changes: once corrections are fitted, the member is rebuilt on
+    /// the corrected simulation (see [`Context::with_state`]) so that, e.g., extra cooling
+    /// acts on the temperature the part really has, not on the simulated one.
+    pub state: bool,
 }
 
 /// Limits on one driver's steady-state gain: `min < gain ≤ max`.
@@ -364,6 +369,18 @@ impl Context {
         }
     }
 
+    /// The context with the target's state corrected by `correction` (the fitted physics
+    /// the simulation lacked): the simulated target and its excess move by it, every measured
+    /// signal stays. Families marked [`Family::state`] are rebuilt on it.
+    pub fn with_state(&self, correction: &[f64]) -> Context {
+        let mut out = self.clone();
+        for ((s, e), c) in out.sim.iter_mut().zip(&mut out.excess).zip(correction) {
+            *s += c;
+            *e += c;
+        }
+        out
+    }
+
     fn axis(&self, axis: AxisId) -> Option<&AxisSignals> {
         self.axes.iter().find(|a| a.axis == axis)
     }
@@ -426,6 +443,29 @@ fn direction_of(speed: &[f64]) -> Vec<f64> {
     speed.iter().map(|&v| smooth_sign(v, epsilon)).collect()
 }
 
+/// Whether an axis runs both ways: at least 1 % of the samples in each direction faster than
+/// 5 % of its top speed (well clear of the speed noise at standstill).
+fn reverses(speed: &[f64]) -> bool {
+    let top = quantile(&speed.iter().map(|v| v.abs()).collect::<Vec<_>>(), 0.99);
+    if top <= 0.0 {
+        return false;
+    }
+    let needed = (0.01 * speed.len() as f64).max(10.0);
+    let count = |positive: bool| {
+        speed
+            .iter()
+            .filter(|v| {
+                if positive {
+                    **v > 0.05 * top
+                } else {
+                    **v < -0.05 * top
+                }
+            })
+            .count() as f64
+    };
+    count(true) >= needed && count(false) >= needed
+}
+
 fn lp(ctx: &Context, values: &[f64], tau: f64) -> Vec<f64> {
     lowpass(&ctx.time, values, tau)
 }
@@ -474,6 +514,12 @@ fn thermal_grid(taus: &[f64], extra: &[f64]) -> Vec<Vec<f64>> {
     grid
 }
 
+/// Marks a family as built from the target's own state (see [`Family::state`]).
+fn state_dependent(mut family: Family) -> Family {
+    family.state = true;
+    family
+}
+
 /// The drivers of a thermal family, computed from the context.
 type Drivers = Box<dyn Fn(&Context, &[f64]) -> Vec<Vec<f64>> + Send + Sync>;
 
@@ -503,6 +549,7 @@ fn thermal_family(
         sign,
         axis,
         lagged: true,
+        state: false,
     }
 }
 
@@ -529,6 +576,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         sign: None,
         axis: None,
         lagged: false,
+        state: false,
     });
     out.push(Family {
         kind: Kind::Physics(Physics::ThermalInertia),
@@ -545,6 +593,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         sign: None,
         axis: None,
         lagged: true,
+        state: false,
     });
     out.push(Family {
         kind: Kind::Physics(Physics::SignalDelay),
@@ -559,6 +608,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         sign: None,
         axis: None,
         lagged: false,
+        state: false,
     });
     out.push(Family {
         kind: Kind::Physics(Physics::SensorOffsetDrift),
@@ -573,6 +623,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         sign: None,
         axis: None,
         lagged: false,
+        state: false,
     });
 
     if thermal {
@@ -601,7 +652,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             Some(c) if c.iter().any(|v| *v > 0.5) && c.iter().any(|v| *v < 0.5) => {
                 // Coolant removes heat in proportion to how far the part is above the coolant:
                 // an on/off term (coolant below room) and one growing with the excess.
-                out.push(thermal_family(
+                out.push(state_dependent(thermal_family(
                     Physics::Coolant,
                     vec![COOLANT.into(), simulated.clone()],
                     vec!["tau_s", "lag_ratio"],
@@ -613,7 +664,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     }),
                     None,
                     None,
-                ));
+                )));
             }
             Some(_) => untested.push((
                 Physics::Coolant,
@@ -646,7 +697,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         let speed_name = axis_column(axis, Quantity::Speed);
         if thermal {
             // Forced convection: Nu ∝ Re^0.5 (laminar) to Re^0.8 (turbulent).
-            out.push(thermal_family(
+            out.push(state_dependent(thermal_family(
                 Physics::SpeedDependentCooling,
                 vec![speed_name.clone(), simulated.clone()],
                 vec!["tau_s", "exponent", "lag_ratio"],
@@ -671,7 +722,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 }),
                 temperature.then_some(GainLimit::negative(0)),
                 Some(axis),
-            ));
+            )));
             out.push(thermal_family(
                 Physics::IronLoss,
                 vec![speed_name.clone()],
@@ -741,7 +792,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 } else {
                     axis_column(axis, Quantity::StatorTemp)
                 };
-                out.push(thermal_family(
+                let family = thermal_family(
                     Physics::LubricantViscosity,
                     vec![
                         axis_column(axis, Quantity::Torque),
@@ -778,7 +829,13 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     }),
                     Some(GainLimit::negative(1)),
                     Some(axis),
-                ));
+                );
+                // On a temperature target the lubricant's warmth is the target's own.
+                out.push(if temperature {
+                    state_dependent(family)
+                } else {
+                    family
+                });
             }
             if axis_signals.position.is_some() {
                 out.push(thermal_family(
@@ -819,41 +876,56 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     d
                 }
             };
-            out.push(Family {
-                kind: Kind::Physics(Physics::CoulombReversal),
-                signals: vec![speed_name.clone()],
-                // The Stribeck speed as a share of the axis's top speed (0: Coulomb alone).
-                theta_names: vec!["stribeck_share"],
-                grid: vec![vec![0.0], vec![0.002], vec![0.006], vec![0.02]],
-                refine: None,
-                build: Box::new(move |ctx, theta| {
-                    let Some(a) = ctx.axis(axis) else {
-                        return vec![];
-                    };
-                    let coulomb: Vec<f64> = a
-                        .direction
-                        .iter()
-                        .enumerate()
-                        .map(|(i, d)| oriented(ctx, *d, i))
-                        .collect();
-                    let share = theta.first().copied().unwrap_or(0.0);
-                    if share <= 0.0 {
-                        return vec![coulomb];
-                    }
-                    // The extra friction near standstill (Stribeck) that fades with speed.
-                    let top = a.speed.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-                    let speed_scale = (share * top).max(1e-9);
-                    let stribeck = coulomb
-                        .iter()
-                        .zip(&a.speed)
-                        .map(|(c, n)| c * (-n.abs() / speed_scale).exp())
-                        .collect();
-                    vec![coulomb, stribeck]
-                }),
-                sign: None,
-                axis: Some(axis),
-                lagged: false,
-            });
+            // Direction-dependent friction shows only where the direction changes; on an
+            // axis that always turns one way (a spindle) a "Coulomb" term is nothing but an
+            // on/off step, which would compete with every speed-dependent effect without
+            // the signature that names it.
+            if !reverses(&axis_signals.speed) {
+                untested.push((
+                    Physics::CoulombReversal,
+                    format!(
+                        "the {} axis never reverses in the real recording",
+                        axis.as_str()
+                    ),
+                ));
+            } else {
+                out.push(Family {
+                    kind: Kind::Physics(Physics::CoulombReversal),
+                    signals: vec![speed_name.clone()],
+                    // The Stribeck speed as a share of the axis's top speed (0: Coulomb alone).
+                    theta_names: vec!["stribeck_share"],
+                    grid: vec![vec![0.0], vec![0.002], vec![0.006], vec![0.02]],
+                    refine: None,
+                    build: Box::new(move |ctx, theta| {
+                        let Some(a) = ctx.axis(axis) else {
+                            return vec![];
+                        };
+                        let coulomb: Vec<f64> = a
+                            .direction
+                            .iter()
+                            .enumerate()
+                            .map(|(i, d)| oriented(ctx, *d, i))
+                            .collect();
+                        let share = theta.first().copied().unwrap_or(0.0);
+                        if share <= 0.0 {
+                            return vec![coulomb];
+                        }
+                        // The extra friction near standstill (Stribeck) that fades with speed.
+                        let top = a.speed.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                        let speed_scale = (share * top).max(1e-9);
+                        let stribeck = coulomb
+                            .iter()
+                            .zip(&a.speed)
+                            .map(|(c, n)| c * (-n.abs() / speed_scale).exp())
+                            .collect();
+                        vec![coulomb, stribeck]
+                    }),
+                    sign: None,
+                    axis: Some(axis),
+                    lagged: false,
+                    state: false,
+                });
+            }
             if axis_signals.position.is_some() {
                 out.push(Family {
                     kind: Kind::Physics(Physics::PositionDependent),
@@ -886,6 +958,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     sign: None,
                     axis: Some(axis),
                     lagged: false,
+                    state: false,
                 });
             }
             if axis_signals.stator.is_some() {
@@ -893,7 +966,13 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     kind: Kind::Physics(Physics::LubricantViscosity),
                     signals: vec![speed_name.clone(), axis_column(axis, Quantity::StatorTemp)],
                     theta_names: vec!["tau_s"],
-                    grid: taus.iter().map(|&t| vec![t]).collect(),
+                    // τ = 0: the drag alone. Where the lubricant's temperature hardly changes
+                    // (or noise hides how the drag follows it) what remains of the missing
+                    // viscosity physics is a speed-dependent drag of the wrong size: the
+                    // simulation's viscosity is not the one at the running temperature.
+                    grid: std::iter::once(vec![0.0])
+                        .chain(taus.iter().map(|&t| vec![t]))
+                        .collect(),
                     refine: Some(Refine { log: true }),
                     build: Box::new(move |ctx, theta| {
                         let Some(a) = ctx.axis(axis) else {
@@ -902,10 +981,8 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         let Some(stator) = a.stator.as_ref() else {
                             return vec![];
                         };
-                        // The lubricant follows the motor's warmth with its own lag; Palmgren's
-                        // viscous drag grows as (ν n)^(2/3).
-                        let warmth = lp(ctx, stator, theta[0]);
-                        let w_mean = mean(&warmth);
+                        // Palmgren's viscous drag grows as (ν n)^(2/3); the lubricant follows
+                        // the motor's warmth with its own lag.
                         let drag: Vec<f64> = a
                             .speed
                             .iter()
@@ -915,6 +992,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                                 oriented(ctx, *d, i) * (n.abs() / 1000.0).powf(2.0 / 3.0)
                             })
                             .collect();
+                        if theta[0] <= 0.0 {
+                            return vec![drag];
+                        }
+                        let warmth = lp(ctx, stator, theta[0]);
+                        let w_mean = mean(&warmth);
                         let falling = drag
                             .iter()
                             .zip(&warmth)
@@ -925,6 +1007,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     sign: Some(GainLimit::negative(1)),
                     axis: Some(axis),
                     lagged: false,
+                    state: false,
                 });
             }
         }
@@ -1108,14 +1191,20 @@ pub fn explain(
                 0.0
             };
             p.insert("friction_change".into(), extra);
-            p.insert("temperature_coefficient_per_K".into(), falling);
-            p.insert("percent_per_K".into(), relative);
-            if !family.lagged {
+            if !family.lagged && coefficients.len() < 2 {
+                format!(
+                    "{axis_name} viscous drag differs from the simulation's: {extra:+.4}{unit} at 1000 rpm, growing as n^(2/3) (the lubricant's viscosity at its running temperature is not the simulated one; how the drag follows the temperature is not resolved in this recording)"
+                )
+            } else if !family.lagged {
+                p.insert("temperature_coefficient_per_K".into(), falling);
+                p.insert("percent_per_K".into(), relative);
                 p.insert("tau_min".into(), tau_min);
                 format!(
                     "{axis_name} friction torque falls as the lubricant warms: {falling:+.4}{unit}/K at 1000 rpm ({relative:+.1} %/K of the speed-dependent drag), the lubricant lagging the motor by τ = {tau_min:.0} min"
                 )
             } else {
+                p.insert("temperature_coefficient_per_K".into(), falling);
+                p.insert("percent_per_K".into(), relative);
                 format!(
                     "friction heat of the {axis_name} axis falls as the lubricant warms ({falling:+.3e}{unit} per W·K), through τ = {tau_min:.0} min"
                 )

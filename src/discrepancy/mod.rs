@@ -273,7 +273,16 @@ pub fn analyse(
         }
     });
     views.truncate(2);
-    let mut refined: Vec<(usize, Vec<f64>)> = Vec::new();
+    // Every accepted correction at its current parameters, and the target's state correction
+    // the state-dependent ones are rebuilt on; both are updated jointly after each acceptance.
+    let mut joint = Joint {
+        families: &families,
+        ctx: &ctx,
+        bins: &bins,
+        y: &y_binned,
+        accepted: Vec::new(),
+        state: None,
+    };
     let steps = stepwise(
         &Problem {
             y: &y_binned,
@@ -284,36 +293,32 @@ pub fn analyse(
             store: &store,
         },
         options,
-        &mut |member, base| {
-            let family = members[member].family;
-            let theta = refine_member(
-                &families[family],
-                &members[member].theta,
-                base,
-                &ctx,
-                &bins,
-                &y_binned,
-            );
-            let columns = binned_standardised(&families[family], &ctx, &theta, &bins);
-            refined.push((family, theta));
-            columns
-        },
+        &mut |member, base| joint.accept(members[member].family, &members[member].theta, base),
     );
+    let state_ctx = joint.state_context();
+    let accepted = std::mem::take(&mut joint.accepted);
     let selected: Vec<Selected> = steps
         .iter()
         .filter(|s| s.accepted)
-        .zip(refined)
+        .zip(accepted)
         .map(|(step, (family, theta))| Selected {
             family,
             theta,
             step: step.clone(),
         })
         .collect();
+    let ctx_of = |family: usize| {
+        if families[family].state {
+            &state_ctx
+        } else {
+            &ctx
+        }
+    };
 
     // Final model on all rows: offset + every selected correction.
     let selected_columns: Vec<Vec<Vec<f64>>> = selected
         .iter()
-        .map(|s| build(&families[s.family], &ctx, &s.theta))
+        .map(|s| build(&families[s.family], ctx_of(s.family), &s.theta))
         .collect();
     let ones = vec![1.0; n];
     let raw: Vec<Vec<f64>> = selected_columns.iter().flatten().cloned().collect();
@@ -394,8 +399,13 @@ pub fn analyse(
                 calibration_gain = Some((coefficients[0], held_out[k + 1].r2 - held_out[k].r2));
             }
             Kind::Physics(physics) => {
-                let (mut parameters, explanation) =
-                    library::explain(family, &s.theta, coefficients, &selected_columns[k], &ctx);
+                let (mut parameters, explanation) = library::explain(
+                    family,
+                    &s.theta,
+                    coefficients,
+                    &selected_columns[k],
+                    ctx_of(s.family),
+                );
                 if physics == Physics::SensorOffsetDrift {
                     parameters.insert("offset_at_start".into(), offset);
                 }
@@ -596,6 +606,177 @@ fn binned_standardised(
         .collect()
 }
 
+/// Rounds of the joint refit after each acceptance (time constants member by member, then the
+/// state correction to convergence).
+const JOINT_ROUNDS: usize = 3;
+
+/// Most fixed-point iterations of the state correction per round.
+const STATE_ITERATIONS: usize = 12;
+
+/// The accepted corrections, refitted jointly.
+///
+/// After a correction is accepted, every accepted correction's time constant (or delay) is
+/// refined again with all the others in the model, one member at a time, and the
+/// state-dependent ones ([`Family::state`]) are rebuilt on the corrected simulation until the
+/// correction they produce reproduces itself (a fixed point: extra cooling acting on the
+/// temperature the part really has). The next stepwise step then works on the residual of
+/// this joint model, so a first correction that took a share of a second effect gives it back
+/// once the second is in the model.
+struct Joint<'a> {
+    families: &'a [Family],
+    ctx: &'a Context,
+    bins: &'a [std::ops::Range<usize>],
+    y: &'a [f64],
+    /// (family, parameters) in the order accepted.
+    accepted: Vec<(usize, Vec<f64>)>,
+    /// Full-rate correction of the target's state (sum of the fitted physical corrections).
+    state: Option<Vec<f64>>,
+}
+
+impl Joint<'_> {
+    /// The context state-dependent families are built on.
+    fn state_context(&self) -> Context {
+        match &self.state {
+            Some(state) => self.ctx.with_state(state),
+            None => self.ctx.clone(),
+        }
+    }
+
+    /// Binned, standardised columns of every accepted correction on `state_ctx`.
+    fn columns(&self, state_ctx: &Context, skip: Option<usize>) -> Vec<Vec<f64>> {
+        self.accepted
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| Some(*k) != skip)
+            .flat_map(|(_, (family, theta))| {
+                let family = &self.families[*family];
+                let ctx = if family.state { state_ctx } else { self.ctx };
+                binned_standardised(family, ctx, theta, self.bins)
+            })
+            .collect()
+    }
+
+    /// Accepts a member refined on top of `base`, refits everything jointly and returns the
+    /// new base columns (the intercept excluded) for the next step.
+    fn accept(&mut self, family: usize, theta: &[f64], base: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let state_ctx = self.state_context();
+        let ctx = if self.families[family].state {
+            &state_ctx
+        } else {
+            self.ctx
+        };
+        let theta = refine_member(&self.families[family], theta, base, ctx, self.bins, self.y);
+        self.accepted.push((family, theta));
+        let ones = vec![1.0; self.y.len()];
+        let stateful = self.accepted.iter().any(|(f, _)| self.families[*f].state);
+        for round in 0..JOINT_ROUNDS {
+            // Time constants, one member at a time with all the others in the model (with a
+            // single correction the refinement above already did this).
+            if self.accepted.len() > 1 || (stateful && round > 0) {
+                let state_ctx = self.state_context();
+                for k in 0..self.accepted.len() {
+                    let mut others = vec![ones.clone()];
+                    others.extend(self.columns(&state_ctx, Some(k)));
+                    let (family, theta) = &self.accepted[k];
+                    let family_ref = &self.families[*family];
+                    let ctx = if family_ref.state {
+                        &state_ctx
+                    } else {
+                        self.ctx
+                    };
+                    let refined = refine_member(family_ref, theta, &others, ctx, self.bins, self.y);
+                    self.accepted[k].1 = refined;
+                }
+            }
+            if !stateful {
+                break;
+            }
+            self.settle_state();
+        }
+        self.columns(&self.state_context(), None)
+    }
+
+    /// Iterates the state correction to its fixed point: fit every accepted correction, take
+    /// the physical ones' sum at full rate as the state, rebuild, repeat. Stops when the state
+    /// moves by less than 0.1 % of the residual's spread, and keeps the last state that did
+    /// not make the in-sample fit worse (a fixed point that runs away is not used).
+    fn settle_state(&mut self) {
+        let spread = series::std_dev(self.y).max(f64::MIN_POSITIVE);
+        let ones = vec![1.0; self.y.len()];
+        let mut previous_sse = f64::INFINITY;
+        for _ in 0..STATE_ITERATIONS {
+            let state_ctx = self.state_context();
+            // Full-rate columns, their binned standardised form, and the joint fit.
+            let full: Vec<(usize, Vec<Vec<f64>>)> = self
+                .accepted
+                .iter()
+                .map(|(family, theta)| {
+                    let f = &self.families[*family];
+                    let ctx = if f.state { &state_ctx } else { self.ctx };
+                    (*family, build(f, ctx, theta))
+                })
+                .collect();
+            let mut design: Vec<Vec<f64>> = vec![ones.clone()];
+            let mut scales = Vec::new();
+            for (_, columns) in &full {
+                for c in columns {
+                    let (standard, scale) = select::standardise(&bin_means(c, self.bins));
+                    design.push(standard);
+                    scales.push(scale.unwrap_or(0.0));
+                }
+            }
+            let refs: Vec<&[f64]> = design.iter().map(|c| c.as_slice()).collect();
+            let Some((beta, sse)) = least_squares(&refs, self.y) else {
+                return;
+            };
+            if sse > previous_sse * (1.0 + 1e-9) {
+                return;
+            }
+            previous_sse = sse;
+            // The physical state: every correction but calibration and measurement effects.
+            let n = self.ctx.time.len();
+            let mut state = vec![0.0; n];
+            let mut index = 0;
+            for (family, columns) in &full {
+                let physical = match self.families[*family].kind {
+                    Kind::Physics(p) => {
+                        !matches!(p, Physics::SignalDelay | Physics::SensorOffsetDrift)
+                    }
+                    Kind::CalibrationGain => false,
+                };
+                for c in columns {
+                    let scale = scales[index];
+                    let b = beta[1 + index];
+                    index += 1;
+                    if !physical || scale <= 0.0 {
+                        continue;
+                    }
+                    // Uncentred: a correction is zero where its driver is (the part at rest
+                    // at room temperature), and its mean level is part of the state.
+                    let raw = b / scale;
+                    for (s, v) in state.iter_mut().zip(c) {
+                        *s += raw * v;
+                    }
+                }
+            }
+            if state.iter().any(|v| !v.is_finite()) {
+                return;
+            }
+            let moved = match &self.state {
+                Some(old) => old
+                    .iter()
+                    .zip(&state)
+                    .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs())),
+                None => state.iter().fold(0.0_f64, |m, v| m.max(v.abs())),
+            };
+            self.state = Some(state);
+            if moved < 1e-3 * spread {
+                return;
+            }
+        }
+    }
+}
+
 /// Refines a member's first nonlinear parameter (τ on a log scale, a delay on a linear one)
 /// between its grid neighbours by a golden-section search of the in-sample error on top of
 /// `base`; the grid value stays when the search finds nothing better.
@@ -611,23 +792,31 @@ fn refine_member(
         return theta.to_vec();
     };
     let current = theta[0];
-    // Neighbours in the grid among members that share the other parameters.
-    let mut values: Vec<f64> = family
+    // A nested member (τ = 0: no lag at all) has nothing to refine.
+    if refine.log && current == 0.0 {
+        return theta.to_vec();
+    }
+    // The search runs between the nearest grid values below and above the current one among
+    // members that share the other parameters (the current value may lie between grid points
+    // after an earlier refinement).
+    let values: Vec<f64> = family
         .grid
         .iter()
         .filter(|t| t[1..] == theta[1..] && t[0].signum() == current.signum())
         .map(|t| t[0])
         .collect();
-    values.sort_by(f64::total_cmp);
-    let Some(position) = values.iter().position(|v| *v == current) else {
-        return theta.to_vec();
-    };
-    let lower = if position > 0 {
-        values[position - 1]
-    } else {
-        current
-    };
-    let upper = values.get(position + 1).copied().unwrap_or(current);
+    let lower = values
+        .iter()
+        .copied()
+        .filter(|v| *v < current)
+        .max_by(f64::total_cmp)
+        .unwrap_or(current);
+    let upper = values
+        .iter()
+        .copied()
+        .filter(|v| *v > current)
+        .min_by(f64::total_cmp)
+        .unwrap_or(current);
     if lower == upper {
         return theta.to_vec();
     }

@@ -233,14 +233,20 @@ fn score_all(
             let family = &problem.families[member.family];
             if let Some(limit) = family.sign {
                 let beta = gram.full_fit(&stats, blocks)?;
+                // A member without the limited driver's columns (a nested simpler form) has
+                // nothing to limit.
                 let gain: f64 = family
                     .driver_columns(&member.theta, limit.driver)
+                    .filter(|k| *k < member.columns.len())
                     .map(|k| {
                         let c = member.columns.start + k;
                         beta[base_dots.len() + k] / problem.store.scale[c]
                     })
                     .sum();
-                if !limit.admits(gain) {
+                let limited = family
+                    .driver_columns(&member.theta, limit.driver)
+                    .any(|k| k < member.columns.len());
+                if limited && !limit.admits(gain) {
                     return None;
                 }
             }
