@@ -713,9 +713,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         .collect();
                     let cooling: Vec<f64> =
                         spin.iter().zip(&ctx.excess).map(|(s, e)| s * e).collect();
-                    // The extra cooling lowers the very temperature it acts on: the second
-                    // driver is that feedback (the next term of the series), with its own
-                    // coefficient.
+                    // The extra cooling lowers the very temperature it acts on. Once a
+                    // correction is fitted this family is rebuilt on the corrected state
+                    // (`state_dependent`), which makes that feedback self-consistent; before
+                    // that, while the candidates compete, the second driver stands for it (the
+                    // next term of the series), with its own coefficient.
                     let lowered = lp(ctx, &cooling, theta[0]);
                     let feedback = spin.iter().zip(&lowered).map(|(s, l)| s * l).collect();
                     vec![cooling, feedback]

@@ -277,10 +277,13 @@ pub fn analyse(
     // the state-dependent ones are rebuilt on; both are updated jointly after each acceptance.
     let mut joint = Joint {
         families: &families,
+        blocks: &blocks,
         ctx: &ctx,
         bins: &bins,
         y: &y_binned,
         accepted: Vec::new(),
+        active: Vec::new(),
+        min_relative_gain: options.min_relative_gain,
         state: None,
     };
     let steps = stepwise(
@@ -297,11 +300,21 @@ pub fn analyse(
     );
     let state_ctx = joint.state_context();
     let accepted = std::mem::take(&mut joint.accepted);
+    let active = std::mem::take(&mut joint.active);
+    // Which steps were withdrawn, in step order (for the trace).
+    let withdrawn: Vec<bool> = {
+        let mut flags = active.iter().map(|a| !a);
+        steps
+            .iter()
+            .map(|s| s.accepted && flags.next().unwrap_or(false))
+            .collect()
+    };
     let selected: Vec<Selected> = steps
         .iter()
         .filter(|s| s.accepted)
-        .zip(accepted)
-        .map(|(step, (family, theta))| Selected {
+        .zip(accepted.into_iter().zip(active))
+        .filter(|(_, (_, active))| *active)
+        .map(|(step, ((family, theta), _))| Selected {
             family,
             theta,
             step: step.clone(),
@@ -388,6 +401,21 @@ pub fn analyse(
         }
     }
 
+    // Each correction's own share in the joint model: the held-out R² lost without it.
+    let without: Vec<FitQuality> = (0..selected.len())
+        .map(|k| {
+            let mut columns: Vec<&[f64]> = vec![&ones];
+            columns.extend(
+                design[1..]
+                    .iter()
+                    .enumerate()
+                    .filter(|(c, _)| !(offsets[k]..offsets[k + 1]).contains(c))
+                    .map(|(_, c)| *c),
+            );
+            held_out_quality(&columns, &residual, &full_blocks, ss_total)
+        })
+        .collect();
+
     // Calibration and findings.
     let mut calibration_gain = None;
     let mut findings = Vec::new();
@@ -418,7 +446,7 @@ pub fn analyse(
                     explanation,
                     parameters,
                     signals: family.signals.clone(),
-                    delta_r2: held_out[k + 1].r2 - held_out[k].r2,
+                    delta_r2: held_out[selected.len()].r2 - without[k].r2,
                     p_value: s.step.p_value,
                     indistinguishable_from: s
                         .step
@@ -444,6 +472,9 @@ pub fn analyse(
             }
         }
     }
+    // Strongest first: by what each finding adds to the joint model, not by when it entered
+    // (a correction that entered first may have taken a share of a later one's effect).
+    findings.sort_by(|a, b| b.delta_r2.total_cmp(&a.delta_r2));
     let gain = 1.0 + calibration_gain.map_or(0.0, |(g, _)| g);
     let unit = crate::signal::channel::Channel::unit_of(target).unwrap_or("");
     let calibration = Calibration {
@@ -555,7 +586,8 @@ pub fn analyse(
             candidates: members.len(),
             steps: steps
                 .iter()
-                .map(|s| report::StepTrace {
+                .zip(withdrawn)
+                .map(|(s, withdrawn)| report::StepTrace {
                     physics: match families[members[s.member].family].kind {
                         Kind::Physics(p) => p.id().to_string(),
                         Kind::CalibrationGain => "calibration".to_string(),
@@ -568,11 +600,25 @@ pub fn analyse(
                     p_value: s.p_value,
                     tail_p: s.tail_p,
                     accepted: s.accepted,
+                    withdrawn,
                 })
                 .collect(),
         },
         plot,
     })
+}
+
+/// Held-out sum of squared errors of `y` on `columns` (the intercept first).
+fn held_out_sse(columns: &[&[f64]], y: &[f64], blocks: &Blocks) -> f64 {
+    let gram = ModelGram::new(columns, blocks);
+    let zty: Vec<Vec<f64>> = columns.iter().map(|c| blocks.dots(c, y)).collect();
+    let yty = blocks.dots(y, y);
+    let stats = TargetStats {
+        zty: zty.iter().map(|v| v.as_slice()).collect(),
+        yty: &yty,
+    };
+    gram.cv_sse(&stats, blocks)
+        .unwrap_or_else(|| y.iter().map(|v| v * v).sum())
 }
 
 /// Held-out R² and RMSE of `y` on `columns` (the intercept first).
@@ -624,11 +670,19 @@ const STATE_ITERATIONS: usize = 12;
 /// once the second is in the model.
 struct Joint<'a> {
     families: &'a [Family],
+    /// The selection's blocks (on the binned rows), for choosing members by held-out error.
+    blocks: &'a Blocks,
     ctx: &'a Context,
     bins: &'a [std::ops::Range<usize>],
     y: &'a [f64],
     /// (family, parameters) in the order accepted.
     accepted: Vec<(usize, Vec<f64>)>,
+    /// Whether each accepted correction is still in the model (a later one may make it
+    /// redundant: see [`Joint::prune`]).
+    active: Vec<bool>,
+    /// Smallest held-out gain a correction must keep in the joint model, as a share of the
+    /// held-out error without it.
+    min_relative_gain: f64,
     /// Full-rate correction of the target's state (sum of the fitted physical corrections).
     state: Option<Vec<f64>>,
 }
@@ -647,7 +701,7 @@ impl Joint<'_> {
         self.accepted
             .iter()
             .enumerate()
-            .filter(|(k, _)| Some(*k) != skip)
+            .filter(|(k, _)| Some(*k) != skip && self.active[*k])
             .flat_map(|(_, (family, theta))| {
                 let family = &self.families[*family];
                 let ctx = if family.state { state_ctx } else { self.ctx };
@@ -667,14 +721,36 @@ impl Joint<'_> {
         };
         let theta = refine_member(&self.families[family], theta, base, ctx, self.bins, self.y);
         self.accepted.push((family, theta));
+        self.active.push(true);
+        self.refit_jointly();
+        while self.prune() {
+            self.refit_jointly();
+        }
+        self.columns(&self.state_context(), None)
+    }
+
+    /// Refits every active correction: time constants one member at a time, and the state
+    /// correction to its fixed point.
+    fn refit_jointly(&mut self) {
         let ones = vec![1.0; self.y.len()];
-        let stateful = self.accepted.iter().any(|(f, _)| self.families[*f].state);
+        let stateful = self
+            .accepted
+            .iter()
+            .zip(&self.active)
+            .any(|((f, _), a)| *a && self.families[*f].state);
+        if !stateful {
+            self.state = None;
+        }
+        let active = self.active.iter().filter(|a| **a).count();
         for round in 0..JOINT_ROUNDS {
             // Time constants, one member at a time with all the others in the model (with a
             // single correction the refinement above already did this).
-            if self.accepted.len() > 1 || (stateful && round > 0) {
+            if active > 1 || (stateful && round > 0) {
                 let state_ctx = self.state_context();
                 for k in 0..self.accepted.len() {
+                    if !self.active[k] {
+                        continue;
+                    }
                     let mut others = vec![ones.clone()];
                     others.extend(self.columns(&state_ctx, Some(k)));
                     let (family, theta) = &self.accepted[k];
@@ -684,7 +760,9 @@ impl Joint<'_> {
                     } else {
                         self.ctx
                     };
-                    let refined = refine_member(family_ref, theta, &others, ctx, self.bins, self.y);
+                    let chosen = self.reselect(*family, theta, &others, ctx);
+                    let refined =
+                        refine_member(family_ref, &chosen, &others, ctx, self.bins, self.y);
                     self.accepted[k].1 = refined;
                 }
             }
@@ -693,7 +771,106 @@ impl Joint<'_> {
             }
             self.settle_state();
         }
-        self.columns(&self.state_context(), None)
+    }
+
+    /// Backward elimination in the joint model: with more than one correction in it, the one
+    /// whose removal costs the least held-out error is withdrawn when that cost is below the
+    /// smallest gain a step must bring (a later, better correction explains what it took).
+    /// Returns whether one was withdrawn.
+    fn prune(&mut self) -> bool {
+        let active: Vec<usize> = (0..self.accepted.len())
+            .filter(|k| self.active[*k])
+            .collect();
+        if active.len() < 2 {
+            return false;
+        }
+        let state_ctx = self.state_context();
+        let ones = vec![1.0; self.y.len()];
+        let cv = |skip: Option<usize>| -> f64 {
+            let mut columns = vec![ones.clone()];
+            columns.extend(self.columns(&state_ctx, skip));
+            let refs: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
+            held_out_sse(&refs, self.y, self.blocks)
+        };
+        let all = cv(None);
+        let weakest = active
+            .iter()
+            .map(|&k| {
+                let without = cv(Some(k));
+                let cost = if without > 0.0 {
+                    (without - all) / without
+                } else {
+                    0.0
+                };
+                (k, cost)
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match weakest {
+            Some((k, cost)) if cost < self.min_relative_gain => {
+                self.active[k] = false;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The member of `family` (its grid and the current parameters `current`) that predicts
+    /// the held-out blocks best with `others` (the intercept first) in the model, among those
+    /// the family's gain limits admit. The stepwise step chose the member before the other
+    /// corrections and the corrected state were known; with them, another lag shape may fit.
+    fn reselect(
+        &self,
+        family: usize,
+        current: &[f64],
+        others: &[Vec<f64>],
+        ctx: &Context,
+    ) -> Vec<f64> {
+        let f = &self.families[family];
+        let mut grid: Vec<Vec<f64>> = f.grid.clone();
+        grid.push(current.to_vec());
+        let scored = series::parallel_map(&grid, |theta| {
+            let columns = build(f, ctx, theta);
+            if columns.is_empty() {
+                return f64::INFINITY;
+            }
+            let mut standard = Vec::with_capacity(columns.len());
+            let mut scales = Vec::with_capacity(columns.len());
+            for c in &columns {
+                let (z, scale) = select::standardise(&bin_means(c, self.bins));
+                standard.push(z);
+                scales.push(scale.unwrap_or(0.0));
+            }
+            let mut design: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
+            design.extend(standard.iter().map(|c| c.as_slice()));
+            let gram = ModelGram::new(&design, self.blocks);
+            let zty: Vec<Vec<f64>> = design.iter().map(|c| self.blocks.dots(c, self.y)).collect();
+            let yty = self.blocks.dots(self.y, self.y);
+            let stats = TargetStats {
+                zty: zty.iter().map(|v| v.as_slice()).collect(),
+                yty: &yty,
+            };
+            if let Some(limit) = f.sign {
+                let Some(beta) = gram.full_fit(&stats, self.blocks) else {
+                    return f64::INFINITY;
+                };
+                let range = f.driver_columns(theta, limit.driver);
+                let limited: Vec<usize> = range.filter(|k| *k < columns.len()).collect();
+                let gain: f64 = limited
+                    .iter()
+                    .filter(|k| scales[**k] > 0.0)
+                    .map(|k| beta[others.len() + k] / scales[*k])
+                    .sum();
+                if !limited.is_empty() && !limit.admits(gain) {
+                    return f64::INFINITY;
+                }
+            }
+            gram.cv_sse(&stats, self.blocks).unwrap_or(f64::INFINITY)
+        });
+        grid.into_iter()
+            .zip(scored)
+            .filter(|(_, e)| e.is_finite())
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or_else(|| current.to_vec(), |(theta, _)| theta)
     }
 
     /// Iterates the state correction to its fixed point: fit every accepted correction, take
@@ -710,7 +887,9 @@ impl Joint<'_> {
             let full: Vec<(usize, Vec<Vec<f64>>)> = self
                 .accepted
                 .iter()
-                .map(|(family, theta)| {
+                .zip(&self.active)
+                .filter(|(_, a)| **a)
+                .map(|((family, theta), _)| {
                     let f = &self.families[*family];
                     let ctx = if f.state { &state_ctx } else { self.ctx };
                     (*family, build(f, ctx, theta))

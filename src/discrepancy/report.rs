@@ -134,6 +134,9 @@ pub struct StepTrace {
     pub tail_p: f64,
     /// Whether it entered the model.
     pub accepted: bool,
+    /// Whether it was withdrawn again when a later correction, refitted jointly with it,
+    /// explained what it had taken (backward elimination).
+    pub withdrawn: bool,
 }
 
 /// The whole analysis.
