@@ -197,7 +197,8 @@ fn as_matrix(columns: &[Vec<f64>]) -> Mat<f64> {
     Mat::from_fn(rows, columns.len(), |i, c| columns[c][i])
 }
 
-fn highpass(values: &[f64], window: usize) -> Vec<f64> {
+/// `values` minus their centred moving average over `window` samples.
+pub fn highpass(values: &[f64], window: usize) -> Vec<f64> {
     let smooth = moving_average(values, window);
     values.iter().zip(&smooth).map(|(v, s)| v - s).collect()
 }
