@@ -14,9 +14,12 @@
 //! - [`link`]: frame sources (replay, embedded twin, Modbus RTU controller), the register map,
 //!   the recorder, and the controller end of the map (`sim-controller`).
 //! - [`compensation`]: approved, bounded, verified and audited compensation writes.
+//! - [`discrepancy`]: sim-vs-real analysis: locate the mismatch, name the missing physics, model
+//!   it and show the fit improve out of sample.
 //! - [`ui`]: the HMI (eframe/egui): session worker, decimated history, view models, panels.
 
 pub mod compensation;
+pub mod discrepancy;
 pub mod estimators;
 pub mod fit;
 pub mod link;

@@ -1,6 +1,7 @@
 //! The one integration-test binary (egui and friends are linked once, see DESIGN.md).
 
 mod common;
+mod discrepancy;
 mod estimators_cli;
 mod fit;
 mod link_replay;

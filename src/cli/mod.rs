@@ -12,6 +12,7 @@ mod backlash;
 mod calibrate;
 mod compensate;
 mod depth_of_cut;
+mod discrepancy;
 mod estimate;
 mod fingerprint;
 mod fit;
@@ -63,6 +64,8 @@ enum Command {
     Compensate(compensate::Args),
     /// Check the compensation audit log.
     Audit(audit::Args),
+    /// Sim vs real: locate the mismatch, name the missing physics, fit it, show the improvement.
+    Discrepancy(discrepancy::Args),
     /// Serve a recording as a Modbus RTU controller speaking the register map.
     SimController(sim_controller::Args),
     /// Headless: simulate a 10-hour production day on the twin and summarise it.
@@ -86,6 +89,7 @@ pub fn run() -> ExitCode {
         Some(Command::Record(args)) => record::run(args),
         Some(Command::Compensate(args)) => compensate::run(args),
         Some(Command::Audit(args)) => audit::run(args),
+        Some(Command::Discrepancy(args)) => discrepancy::run(args),
         Some(Command::SimController(args)) => sim_controller::run(args),
         Some(Command::DaySummary) => simulate::run_default_day(),
         None => hmi::run(cli.hmi),

@@ -1,0 +1,71 @@
+//! `servosight discrepancy`: where a simulation and a real recording disagree on a target, which
+//! physics the simulation left out, the fitted correction, and the fit before and after.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use servosight::discrepancy::{Options, analyse};
+use servosight::signal::read_recording;
+
+/// Arguments of `servosight discrepancy`.
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Example:\n  servosight simulate --scenario production --hours 6 --seed 3 --without copper_loss --noise 0 -o sim.csv\n  \
+servosight simulate --scenario production --hours 6 --seed 3 -o real.csv\n  \
+servosight discrepancy --sim sim.csv --real real.csv --target S.stator_temp_C --json report.json"
+)]
+pub struct Args {
+    /// The simulation (CSV v1), e.g. a twin run or an imported FEA export.
+    #[arg(long)]
+    pub sim: PathBuf,
+    /// The real recording (CSV v1).
+    #[arg(long)]
+    pub real: PathBuf,
+    /// The column to compare (present in both files).
+    #[arg(long)]
+    pub target: String,
+    /// Write the report as JSON to this file ("-" for stdout, which replaces the text report).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the plot-ready series (time, real, sim, corrected, residual before/after, regions)
+    /// as JSON to this file.
+    #[arg(long)]
+    pub plot_data: Option<PathBuf>,
+    /// Phase-randomised surrogates per selection step (the p-value resolution is 1/(N + 1)).
+    #[arg(long, default_value_t = Options::default().surrogates)]
+    pub surrogates: usize,
+    /// Significance level of a finding.
+    #[arg(long, default_value_t = Options::default().alpha)]
+    pub alpha: f64,
+    /// Time-blocked cross-validation folds.
+    #[arg(long, default_value_t = Options::default().folds)]
+    pub folds: usize,
+    /// Seed of the surrogates (the same seed gives the same report).
+    #[arg(long, default_value_t = Options::default().seed)]
+    pub seed: u64,
+}
+
+/// Runs `servosight discrepancy`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let sim = read_recording(&args.sim).context("cannot read the simulation")?;
+    let real = read_recording(&args.real).context("cannot read the real recording")?;
+    let options = Options {
+        surrogates: args.surrogates,
+        alpha: args.alpha,
+        folds: args.folds,
+        seed: args.seed,
+        ..Options::default()
+    };
+    let report = analyse(&sim, &real, &args.target, &options)?;
+    let json_to_stdout = args.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    if !json_to_stdout {
+        print!("{}", report.summary());
+    }
+    if let Some(path) = &args.json {
+        crate::servosight_cli::write_json(path, &report)?;
+    }
+    if let Some(path) = &args.plot_data {
+        crate::servosight_cli::write_json(path, &report.plot)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,1273 @@
+//! The physics library: every id of DESIGN.md's vocabulary as a parametric correction of the
+//! simulated target, built from the real recording's signals and the simulated target itself.
+//!
+//! A correction is linear in its coefficients but may have nonlinear parameters (a time
+//! constant τ of a first-order lag, a delay, a convection exponent); each of those spans a small
+//! grid, so a [`Family`] is a set of candidate members, and the selection picks the member that
+//! cross-validates best. Heat always reaches the target through a first-order lag with a fitted
+//! τ; delays are estimated, never assumed.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use super::series::{legendre, lowpass, mean, quantile, robust_sigma, shifted, smooth_sign};
+use crate::signal::channel::{AMBIENT, COOLANT, Channel};
+use crate::signal::{AxisId, Quantity, axis_column};
+
+/// A physics id of the vocabulary (DESIGN.md), plus `iron_loss`, which the twin also has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Physics {
+    /// The structure follows room temperature changes through its own lag.
+    AmbientTemperature,
+    /// Heat capacity / time constant wrong: the real response lags or leads the simulated one.
+    ThermalInertia,
+    /// Convective heat transfer grows with rotational speed.
+    SpeedDependentCooling,
+    /// Friction torque and friction heat fall as the lubricant warms.
+    LubricantViscosity,
+    /// Motor I²R heating that grows with current.
+    CopperLoss,
+    /// Coolant or oil-chiller cooling while it is on.
+    Coolant,
+    /// Direction-dependent friction at reversals.
+    CoulombReversal,
+    /// An effect varying along the stroke.
+    PositionDependent,
+    /// A time delay between the measured and the simulated signal.
+    SignalDelay,
+    /// A constant offset or slow linear drift of the measurement.
+    SensorOffsetDrift,
+    /// Motor iron loss (hysteresis and eddy currents) growing with speed.
+    IronLoss,
+}
+
+impl Physics {
+    /// Every id, vocabulary order first.
+    pub const ALL: [Physics; 11] = [
+        Physics::AmbientTemperature,
+        Physics::ThermalInertia,
+        Physics::SpeedDependentCooling,
+        Physics::LubricantViscosity,
+        Physics::CopperLoss,
+        Physics::Coolant,
+        Physics::CoulombReversal,
+        Physics::PositionDependent,
+        Physics::SignalDelay,
+        Physics::SensorOffsetDrift,
+        Physics::IronLoss,
+    ];
+
+    /// The id used in reports.
+    pub fn id(self) -> &'static str {
+        match self {
+            Physics::AmbientTemperature => "ambient_temperature",
+            Physics::ThermalInertia => "thermal_inertia",
+            Physics::SpeedDependentCooling => "speed_dependent_cooling",
+            Physics::LubricantViscosity => "lubricant_viscosity",
+            Physics::CopperLoss => "copper_loss",
+            Physics::Coolant => "coolant",
+            Physics::CoulombReversal => "coulomb_reversal",
+            Physics::PositionDependent => "position_dependent",
+            Physics::SignalDelay => "signal_delay",
+            Physics::SensorOffsetDrift => "sensor_offset_drift",
+            Physics::IronLoss => "iron_loss",
+        }
+    }
+}
+
+impl fmt::Display for Physics {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.id())
+    }
+}
+
+/// What a candidate correction stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Kind {
+    /// Missing physics.
+    Physics(Physics),
+    /// A gain miscalibration of the simulation (reported as calibration, never as physics).
+    CalibrationGain,
+}
+
+/// What kind of quantity the target is, from its unit: it decides which corrections apply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TargetClass {
+    /// A temperature (°C): heat balances act on it directly.
+    Temperature,
+    /// A thermal displacement (µm): heat acts on it through the structure.
+    Displacement,
+    /// A torque, current or load: friction acts on it directly.
+    Effort {
+        /// A current is a magnitude (never negative): friction adds to it in the direction
+        /// the drive already pushes.
+        magnitude: bool,
+    },
+    /// Anything else: every correction is tried.
+    Other,
+}
+
+impl TargetClass {
+    /// Classifies a column by its unit.
+    pub fn of(target: &str) -> TargetClass {
+        match Channel::unit_of(target) {
+            Some("°C") => TargetClass::Temperature,
+            Some("µm") => TargetClass::Displacement,
+            Some("N·m") | Some("%") => TargetClass::Effort { magnitude: false },
+            Some("A") => TargetClass::Effort { magnitude: true },
+            _ => TargetClass::Other,
+        }
+    }
+
+    fn thermal(self) -> bool {
+        matches!(
+            self,
+            TargetClass::Temperature | TargetClass::Displacement | TargetClass::Other
+        )
+    }
+
+    fn effort(self) -> bool {
+        matches!(self, TargetClass::Effort { .. } | TargetClass::Other)
+    }
+}
+
+/// The signals of one axis found in the real recording.
+#[derive(Debug, Clone)]
+pub struct AxisSignals {
+    /// The axis.
+    pub axis: AxisId,
+    /// Motor speed, rpm.
+    pub speed: Vec<f64>,
+    /// Motor current, A.
+    pub current: Option<Vec<f64>>,
+    /// Motor torque, N·m.
+    pub torque: Option<Vec<f64>>,
+    /// Position (mm or °).
+    pub position: Option<Vec<f64>>,
+    /// Stator temperature, °C.
+    pub stator: Option<Vec<f64>>,
+    /// Direction of motion (smooth sign of the speed).
+    pub direction: Vec<f64>,
+}
+
+/// Everything the corrections are built from, on the aligned full-rate rows.
+#[derive(Debug, Clone)]
+pub struct Context {
+    /// The target column.
+    pub target: String,
+    /// Its unit as written in reports ("" when unknown).
+    pub unit: String,
+    /// Its class.
+    pub class: TargetClass,
+    /// Time, s.
+    pub time: Vec<f64>,
+    /// The simulated target.
+    pub sim: Vec<f64>,
+    /// The simulated target's excess over its reference (room for temperatures, the first
+    /// value otherwise): what convection and coolant act on.
+    pub excess: Vec<f64>,
+    /// Room temperature the simulation did not have: real minus simulated `ambient_C` when
+    /// both exist, the real room's deviation from its mean otherwise.
+    pub ambient_delta: Option<Vec<f64>>,
+    /// `coolant_on` of the real recording.
+    pub coolant: Option<Vec<f64>>,
+    /// Axes with a speed column, the target's own axis first (only that one when it has one).
+    pub axes: Vec<AxisSignals>,
+    /// Length of the recording, s.
+    pub duration_s: f64,
+    /// Median sample interval, s.
+    pub step_s: f64,
+}
+
+/// Columns (full rate) of one candidate member.
+pub type Columns = Vec<Vec<f64>>;
+
+/// Builds a member's columns from the context and its nonlinear parameters.
+pub type Builder = Box<dyn Fn(&Context, &[f64]) -> Columns + Send + Sync>;
+
+/// A parametric correction with its grid of nonlinear parameters.
+pub struct Family {
+    /// What it stands for.
+    pub kind: Kind,
+    /// Which signals it is built from (column names).
+    pub signals: Vec<String>,
+    /// Names of the nonlinear parameters (e.g. `tau_s`).
+    pub theta_names: Vec<&'static str>,
+    /// The grid of nonlinear parameters.
+    pub grid: Vec<Vec<f64>>,
+    /// Bounds for refining the first nonlinear parameter after selection (on a log scale for
+    /// time constants); `None` when there is nothing to refine.
+    pub refine: Option<Refine>,
+    /// Builds the columns.
+    pub build: Builder,
+    /// A driver whose steady-state gain (the sum of its columns' coefficients) the physics
+    /// limits. Members fitting outside the limits are not this physics and are not offered.
+    pub sign: Option<GainLimit>,
+    /// Heat paths: the last nonlinear parameter is the ratio of a second lag's time constant
+    /// to the first (0: one lag), and every driver has one column per lag.
+    pub lagged: bool,
+    /// Axis the correction belongs to, for explanations.
+    pub axis: Option<AxisId>,
+    /// Built from the target's own state (its excess over room, its warmth), which the
+    /// missing physics itself changes: once corrections are fitted, the member is rebuilt on
+    /// the corrected simulation (see [`Context::with_state`]) so that, e.g., extra cooling
+    /// acts on the temperature the part really has, not on the simulated one.
+    pub state: bool,
+}
+
+/// Limits on one driver's steady-state gain: `min < gain ≤ max`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GainLimit {
+    /// The driver.
+    pub driver: usize,
+    /// Exclusive lower limit.
+    pub min: f64,
+    /// Inclusive upper limit.
+    pub max: f64,
+}
+
+impl GainLimit {
+    /// The gain must be positive.
+    pub fn positive(driver: usize) -> Self {
+        GainLimit {
+            driver,
+            min: 0.0,
+            max: f64::INFINITY,
+        }
+    }
+
+    /// The gain must be negative.
+    pub fn negative(driver: usize) -> Self {
+        GainLimit {
+            driver,
+            min: f64::NEG_INFINITY,
+            max: 0.0,
+        }
+    }
+
+    /// Whether `gain` is within the limits.
+    pub fn admits(&self, gain: f64) -> bool {
+        gain > self.min && gain <= self.max && !(self.max == 0.0 && gain == 0.0)
+    }
+}
+
+/// How the first nonlinear parameter may be refined.
+#[derive(Debug, Clone, Copy)]
+pub struct Refine {
+    /// Search on a log scale (time constants) or a linear one (delays).
+    pub log: bool,
+}
+
+impl Family {
+    /// The columns of driver `driver` for a member with nonlinear parameters `theta`.
+    pub fn driver_columns(&self, theta: &[f64], driver: usize) -> std::ops::Range<usize> {
+        let per_driver = if self.lagged && theta.last().is_some_and(|r| *r > 0.0) {
+            2
+        } else {
+            1
+        };
+        driver * per_driver..(driver + 1) * per_driver
+    }
+
+    /// The lag time constants of a member, s (one or two).
+    pub fn lags(&self, theta: &[f64]) -> Vec<f64> {
+        let tau = theta.first().copied().unwrap_or(0.0);
+        match theta.last() {
+            Some(&ratio) if self.lagged && ratio > 0.0 => vec![tau, tau * ratio],
+            _ => vec![tau],
+        }
+    }
+}
+
+impl fmt::Debug for Family {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Family")
+            .field("kind", &self.kind)
+            .field("signals", &self.signals)
+            .field("grid", &self.grid.len())
+            .finish()
+    }
+}
+
+impl Context {
+    /// Collects the signals for `target` from the aligned recordings.
+    pub fn new(aligned: &super::align::Aligned<'_>, target: &str) -> Context {
+        let class = TargetClass::of(target);
+        let unit = Channel::unit_of(target).unwrap_or("").to_string();
+        let time = aligned.time.clone();
+        let sim = aligned.sim_target.clone();
+        let sim_room = aligned.sim_column(AMBIENT);
+        let real_room = aligned.real_column(AMBIENT);
+        let excess: Vec<f64> = match (class, sim_room.as_ref().or(real_room.as_ref())) {
+            (TargetClass::Temperature, Some(room)) => {
+                sim.iter().zip(room).map(|(s, r)| s - r).collect()
+            }
+            _ => {
+                let first = sim.first().copied().unwrap_or(0.0);
+                sim.iter().map(|s| s - first).collect()
+            }
+        };
+        let ambient_delta = match (&real_room, &sim_room) {
+            (Some(real), Some(sim)) => Some(real.iter().zip(sim).map(|(r, s)| r - s).collect()),
+            (Some(real), None) => {
+                let m = mean(real);
+                Some(real.iter().map(|r| r - m).collect())
+            }
+            _ => None,
+        };
+        let coolant = aligned.real_column(COOLANT);
+        let own_axis = match Channel::parse(target) {
+            Channel::Servo { axis, .. } => Some(axis),
+            Channel::Reference { axis, .. } => Some(axis),
+            _ => None,
+        };
+        let mut axes: Vec<AxisSignals> = AxisId::ALL
+            .iter()
+            .filter_map(|&axis| {
+                let speed = aligned.real_column(&axis_column(axis, Quantity::Speed))?;
+                let position = aligned
+                    .real_column(&axis_column(axis, Quantity::Position))
+                    .filter(|_| axis.is_linear());
+                let direction = direction_of(&speed);
+                Some(AxisSignals {
+                    axis,
+                    current: aligned.real_column(&axis_column(axis, Quantity::Current)),
+                    torque: aligned.real_column(&axis_column(axis, Quantity::Torque)),
+                    stator: aligned.real_column(&axis_column(axis, Quantity::StatorTemp)),
+                    position,
+                    speed,
+                    direction,
+                })
+            })
+            .collect();
+        if let Some(own) = own_axis
+            && axes.iter().any(|a| a.axis == own)
+        {
+            axes.retain(|a| a.axis == own);
+        }
+        let duration_s = time.last().copied().unwrap_or(0.0) - time.first().copied().unwrap_or(0.0);
+        let mut steps: Vec<f64> = time.windows(2).map(|w| w[1] - w[0]).collect();
+        steps.retain(|d| *d > 0.0);
+        let step_s = if steps.is_empty() {
+            1.0
+        } else {
+            super::series::median(&steps)
+        };
+        Context {
+            target: target.to_string(),
+            unit,
+            class,
+            time,
+            sim,
+            excess,
+            ambient_delta,
+            coolant,
+            axes,
+            duration_s,
+            step_s,
+        }
+    }
+
+    /// The context with the target's state corrected by `correction` (the fitted physics
+    /// the simulation lacked): the simulated target and its excess move by it, every measured
+    /// signal stays. Families marked [`Family::state`] are rebuilt on it.
+    pub fn with_state(&self, correction: &[f64]) -> Context {
+        let mut out = self.clone();
+        for ((s, e), c) in out.sim.iter_mut().zip(&mut out.excess).zip(correction) {
+            *s += c;
+            *e += c;
+        }
+        out
+    }
+
+    fn axis(&self, axis: AxisId) -> Option<&AxisSignals> {
+        self.axes.iter().find(|a| a.axis == axis)
+    }
+
+    fn axis_of(&self, axis: Option<AxisId>) -> Option<&AxisSignals> {
+        axis.and_then(|a| self.axis(a))
+    }
+
+    /// Time constants worth trying: from a few samples to half the recording, doubling.
+    fn tau_grid(&self) -> Vec<f64> {
+        let low = (3.0 * self.step_s).max(30.0);
+        let high = (0.5 * self.duration_s).min(12.0 * 3600.0);
+        let mut grid = Vec::new();
+        let mut tau = low;
+        while tau <= high {
+            grid.push(tau);
+            tau *= 2.0;
+        }
+        if grid.is_empty() {
+            grid.push(low);
+        }
+        grid
+    }
+
+    /// Delays worth trying, both signs: every sample up to sixty (a delay that misses by a
+    /// sample smears a fast signal badly), then growing by a tenth (rounded to whole samples)
+    /// up to a tenth of the recording, at most ten minutes.
+    fn delay_grid(&self) -> Vec<f64> {
+        let high = (0.1 * self.duration_s).min(600.0);
+        let mut grid = Vec::new();
+        let mut samples = 1.0_f64;
+        while samples * self.step_s <= high {
+            grid.push(samples * self.step_s);
+            grid.push(-samples * self.step_s);
+            samples = if samples < 60.0 {
+                samples + 1.0
+            } else {
+                (samples * 1.1).round()
+            };
+        }
+        grid
+    }
+}
+
+/// The direction of motion from a (noisy) speed: a smooth sign whose linear zone is a few
+/// times the speed noise seen at standstill.
+fn direction_of(speed: &[f64]) -> Vec<f64> {
+    let top = quantile(&speed.iter().map(|v| v.abs()).collect::<Vec<_>>(), 0.99);
+    let still: Vec<f64> = speed
+        .windows(2)
+        .filter(|w| w[0].abs() < 0.05 * top && w[1].abs() < 0.05 * top)
+        .map(|w| w[1] - w[0])
+        .collect();
+    let noise = if still.len() > 10 {
+        robust_sigma(&still) / std::f64::consts::SQRT_2
+    } else {
+        0.0
+    };
+    let epsilon = (4.0 * noise).max(1e-6 * top.max(1e-9));
+    speed.iter().map(|&v| smooth_sign(v, epsilon)).collect()
+}
+
+/// Whether an axis runs both ways: at least 1 % of the samples in each direction faster than
+/// 5 % of its top speed (well clear of the speed noise at standstill).
+fn reverses(speed: &[f64]) -> bool {
+    let top = quantile(&speed.iter().map(|v| v.abs()).collect::<Vec<_>>(), 0.99);
+    if top <= 0.0 {
+        return false;
+    }
+    let needed = (0.01 * speed.len() as f64).max(10.0);
+    let count = |positive: bool| {
+        speed
+            .iter()
+            .filter(|v| {
+                if positive {
+                    **v > 0.05 * top
+                } else {
+                    **v < -0.05 * top
+                }
+            })
+            .count() as f64
+    };
+    count(true) >= needed && count(false) >= needed
+}
+
+fn lp(ctx: &Context, values: &[f64], tau: f64) -> Vec<f64> {
+    lowpass(&ctx.time, values, tau)
+}
+
+fn normalised_position(position: &[f64]) -> Vec<f64> {
+    let lo = quantile(position, 0.001);
+    let hi = quantile(position, 0.999);
+    let span = (hi - lo).max(1e-12);
+    position
+        .iter()
+        .map(|p| (2.0 * (p - lo) / span - 1.0).clamp(-1.0, 1.0))
+        .collect()
+}
+
+/// Ratios of the second lag's time constant to the first; 0 means a single lag.
+const LAG_RATIOS: [f64; 3] = [0.0, 4.0, 12.0];
+
+/// Copper's resistance rises 0.393 % per kelvin (a material constant, IEC 60028).
+const COPPER_TEMPERATURE_COEFFICIENT: f64 = 0.00393;
+
+/// Heat reaching the target from a driver: one first-order lag, or two in parallel (a sum of
+/// two exponentials, which is what a two-node thermal network produces).
+fn heat_path(ctx: &Context, driver: &[f64], theta: &[f64]) -> Vec<Vec<f64>> {
+    let tau = theta[0];
+    let ratio = theta.last().copied().unwrap_or(0.0);
+    let mut columns = vec![lp(ctx, driver, tau)];
+    if ratio > 0.0 {
+        columns.push(lp(ctx, driver, tau * ratio));
+    }
+    columns
+}
+
+/// Grid of thermal members: every τ × every lag ratio × every extra parameter value.
+fn thermal_grid(taus: &[f64], extra: &[f64]) -> Vec<Vec<f64>> {
+    let mut grid = Vec::new();
+    for &tau in taus {
+        for &ratio in &LAG_RATIOS {
+            if extra.is_empty() {
+                grid.push(vec![tau, ratio]);
+            }
+            for &e in extra {
+                grid.push(vec![tau, e, ratio]);
+            }
+        }
+    }
+    grid
+}
+
+/// Marks a family as built from the target's own state (see [`Family::state`]).
+fn state_dependent(mut family: Family) -> Family {
+    family.state = true;
+    family
+}
+
+/// The drivers of a thermal family, computed from the context.
+type Drivers = Box<dyn Fn(&Context, &[f64]) -> Vec<Vec<f64>> + Send + Sync>;
+
+/// A family whose drivers reach the target through fitted lags.
+#[allow(clippy::too_many_arguments)]
+fn thermal_family(
+    kind: Physics,
+    signals: Vec<String>,
+    theta_names: Vec<&'static str>,
+    grid: Vec<Vec<f64>>,
+    drivers: Drivers,
+    sign: Option<GainLimit>,
+    axis: Option<AxisId>,
+) -> Family {
+    Family {
+        kind: Kind::Physics(kind),
+        signals,
+        theta_names,
+        grid,
+        refine: Some(Refine { log: true }),
+        build: Box::new(move |ctx, theta| {
+            drivers(ctx, theta)
+                .iter()
+                .flat_map(|d| heat_path(ctx, d, theta))
+                .collect()
+        }),
+        sign,
+        axis,
+        lagged: true,
+        state: false,
+    }
+}
+
+/// The library for the target in `ctx`: every correction whose signals exist, and the physics
+/// that could not be tried with the reason.
+pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
+    let mut out = Vec::new();
+    let mut untested = Vec::new();
+    let taus = ctx.tau_grid();
+    let temperature = ctx.class == TargetClass::Temperature;
+    let thermal = ctx.class.thermal();
+    let effort = ctx.class.effort();
+    let simulated = format!("{} (simulated)", ctx.target);
+
+    // A gain miscalibration competes with the physics, so that a plain gain error is
+    // absorbed as calibration and never reported as new physics.
+    out.push(Family {
+        kind: Kind::CalibrationGain,
+        signals: vec![simulated.clone()],
+        theta_names: vec![],
+        grid: vec![vec![]],
+        refine: None,
+        build: Box::new(|ctx, _| vec![ctx.sim.clone()]),
+        sign: None,
+        axis: None,
+        lagged: false,
+        state: false,
+    });
+    out.push(Family {
+        kind: Kind::Physics(Physics::ThermalInertia),
+        signals: vec![simulated.clone()],
+        theta_names: vec!["tau_s", "lag_ratio"],
+        grid: thermal_grid(&taus, &[]),
+        refine: Some(Refine { log: true }),
+        build: Box::new(|ctx, theta| {
+            heat_path(ctx, &ctx.sim, theta)
+                .into_iter()
+                .map(|lagged| lagged.iter().zip(&ctx.sim).map(|(l, s)| l - s).collect())
+                .collect()
+        }),
+        sign: None,
+        axis: None,
+        lagged: true,
+        state: false,
+    });
+    out.push(Family {
+        kind: Kind::Physics(Physics::SignalDelay),
+        signals: vec![simulated.clone()],
+        theta_names: vec!["delay_s"],
+        grid: ctx.delay_grid().into_iter().map(|d| vec![d]).collect(),
+        refine: Some(Refine { log: false }),
+        build: Box::new(|ctx, theta| {
+            let moved = shifted(&ctx.time, &ctx.sim, theta[0]);
+            vec![moved.iter().zip(&ctx.sim).map(|(m, s)| m - s).collect()]
+        }),
+        sign: None,
+        axis: None,
+        lagged: false,
+        state: false,
+    });
+    out.push(Family {
+        kind: Kind::Physics(Physics::SensorOffsetDrift),
+        signals: vec!["time_s".into()],
+        theta_names: vec![],
+        grid: vec![vec![]],
+        refine: None,
+        build: Box::new(|ctx, _| {
+            let t0 = ctx.time.first().copied().unwrap_or(0.0);
+            vec![ctx.time.iter().map(|t| (t - t0) / 3600.0).collect()]
+        }),
+        sign: None,
+        axis: None,
+        lagged: false,
+        state: false,
+    });
+
+    if thermal {
+        match &ctx.ambient_delta {
+            Some(_) => out.push(thermal_family(
+                Physics::AmbientTemperature,
+                vec![AMBIENT.into()],
+                vec!["tau_s", "lag_ratio"],
+                thermal_grid(&taus, &[]),
+                Box::new(|ctx, _| vec![ctx.ambient_delta.clone().unwrap_or_default()]),
+                // A part whose surroundings all follow the room ends up following it one to
+                // one: its steady-state gain to the room lies between 0 and 1.
+                temperature.then_some(GainLimit {
+                    driver: 0,
+                    min: 0.0,
+                    max: 1.05,
+                }),
+                None,
+            )),
+            None => untested.push((
+                Physics::AmbientTemperature,
+                format!("the real recording has no `{AMBIENT}` column"),
+            )),
+        }
+        match &ctx.coolant {
+            Some(c) if c.iter().any(|v| *v > 0.5) && c.iter().any(|v| *v < 0.5) => {
+                // Coolant removes heat in proportion to how far the part is above the coolant:
+                // an on/off term (coolant below room) and one growing with the excess.
+                out.push(state_dependent(thermal_family(
+                    Physics::Coolant,
+                    vec![COOLANT.into(), simulated.clone()],
+                    vec!["tau_s", "lag_ratio"],
+                    thermal_grid(&taus, &[]),
+                    Box::new(|ctx, _| {
+                        let c = ctx.coolant.clone().unwrap_or_default();
+                        let ce: Vec<f64> = c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect();
+                        vec![c, ce]
+                    }),
+                    None,
+                    None,
+                )));
+            }
+            Some(_) => untested.push((
+                Physics::Coolant,
+                format!("`{COOLANT}` never changes in the real recording"),
+            )),
+            None => untested.push((
+                Physics::Coolant,
+                format!("the real recording has no `{COOLANT}` column"),
+            )),
+        }
+    }
+
+    if ctx.axes.is_empty() {
+        for physics in [
+            Physics::SpeedDependentCooling,
+            Physics::LubricantViscosity,
+            Physics::CopperLoss,
+            Physics::CoulombReversal,
+            Physics::PositionDependent,
+            Physics::IronLoss,
+        ] {
+            untested.push((
+                physics,
+                "the real recording has no axis speed column".into(),
+            ));
+        }
+    }
+    for axis_signals in &ctx.axes {
+        let axis = axis_signals.axis;
+        let speed_name = axis_column(axis, Quantity::Speed);
+        if thermal {
+            // Forced convection: Nu ∝ Re^0.5 (laminar) to Re^0.8 (turbulent).
+            out.push(state_dependent(thermal_family(
+                Physics::SpeedDependentCooling,
+                vec![speed_name.clone(), simulated.clone()],
+                vec!["tau_s", "exponent", "lag_ratio"],
+                thermal_grid(&taus, &[0.5, 0.8]),
+                Box::new(move |ctx, theta| {
+                    let Some(a) = ctx.axis(axis) else {
+                        return vec![];
+                    };
+                    let spin: Vec<f64> = a
+                        .speed
+                        .iter()
+                        .map(|n| (n.abs() / 1000.0).powf(theta[1]))
+                        .collect();
+                    let cooling: Vec<f64> =
+                        spin.iter().zip(&ctx.excess).map(|(s, e)| s * e).collect();
+                    // The extra cooling lowers the very temperature it acts on. Once a
+                    // correction is fitted this family is rebuilt on the corrected state
+                    // (`state_dependent`), which makes that feedback self-consistent; before
+                    // that, while the candidates compete, the second driver stands for it (the
+                    // next term of the series), with its own coefficient.
+                    let lowered = lp(ctx, &cooling, theta[0]);
+                    let feedback = spin.iter().zip(&lowered).map(|(s, l)| s * l).collect();
+                    vec![cooling, feedback]
+                }),
+                temperature.then_some(GainLimit::negative(0)),
+                Some(axis),
+            )));
+            out.push(thermal_family(
+                Physics::IronLoss,
+                vec![speed_name.clone()],
+                vec!["tau_s", "lag_ratio"],
+                thermal_grid(&taus, &[]),
+                Box::new(move |ctx, _| {
+                    let Some(a) = ctx.axis(axis) else {
+                        return vec![];
+                    };
+                    vec![
+                        a.speed.iter().map(|n| n.abs() / 1000.0).collect(),
+                        a.speed.iter().map(|n| (n / 1000.0).powi(2)).collect(),
+                    ]
+                }),
+                temperature.then_some(GainLimit::positive(0)),
+                Some(axis),
+            ));
+            match &axis_signals.current {
+                Some(_) => out.push(thermal_family(
+                    Physics::CopperLoss,
+                    vec![
+                        axis_column(axis, Quantity::Current),
+                        axis_column(axis, Quantity::StatorTemp),
+                    ],
+                    vec!["tau_s", "lag_ratio"],
+                    thermal_grid(&taus, &[]),
+                    Box::new(move |ctx, theta| {
+                        let Some(a) = ctx.axis(axis) else {
+                            return vec![];
+                        };
+                        let Some(current) = a.current.as_ref() else {
+                            return vec![];
+                        };
+                        // I²R with the winding's resistance rising with its temperature.
+                        let heat: Vec<f64> = current
+                            .iter()
+                            .enumerate()
+                            .map(|(i, c)| {
+                                let warm = a.stator.as_ref().map_or(1.0, |s| {
+                                    1.0 + COPPER_TEMPERATURE_COEFFICIENT * (s[i] - 20.0)
+                                });
+                                c * c * warm
+                            })
+                            .collect();
+                        // The extra warmth leaves faster while the motor spins (forced
+                        // convection, ∝ n^0.8): the feedback term of the heat path.
+                        let warmed = lp(ctx, &heat, theta[0]);
+                        let shed = a
+                            .speed
+                            .iter()
+                            .zip(&warmed)
+                            .map(|(n, w)| (n.abs() / 1000.0).powf(0.8) * w)
+                            .collect();
+                        vec![heat, shed]
+                    }),
+                    temperature.then_some(GainLimit::positive(0)),
+                    Some(axis),
+                )),
+                None => untested.push((
+                    Physics::CopperLoss,
+                    format!("no `{}` column", axis_column(axis, Quantity::Current)),
+                )),
+            }
+            if axis_signals.torque.is_some() && (temperature || axis_signals.stator.is_some()) {
+                let warmth_signal = if temperature {
+                    simulated.clone()
+                } else {
+                    axis_column(axis, Quantity::StatorTemp)
+                };
+                let family = thermal_family(
+                    Physics::LubricantViscosity,
+                    vec![
+                        axis_column(axis, Quantity::Torque),
+                        speed_name.clone(),
+                        warmth_signal,
+                    ],
+                    vec!["tau_s", "lag_ratio"],
+                    thermal_grid(&taus, &[]),
+                    Box::new(move |ctx, _| {
+                        let Some(a) = ctx.axis(axis) else {
+                            return vec![];
+                        };
+                        let Some(torque) = a.torque.as_ref() else {
+                            return vec![];
+                        };
+                        let warmth: &[f64] = if ctx.class == TargetClass::Temperature {
+                            &ctx.sim
+                        } else {
+                            a.stator.as_deref().unwrap_or(&[])
+                        };
+                        let w_mean = mean(warmth);
+                        // Friction power, and the share of it that falls as the oil warms.
+                        let power: Vec<f64> = torque
+                            .iter()
+                            .zip(&a.speed)
+                            .map(|(t, n)| (t * n).abs() * std::f64::consts::PI / 30.0)
+                            .collect();
+                        let falling = power
+                            .iter()
+                            .zip(warmth)
+                            .map(|(p, w)| p * (w - w_mean))
+                            .collect();
+                        vec![power, falling]
+                    }),
+                    Some(GainLimit::negative(1)),
+                    Some(axis),
+                );
+                // On a temperature target the lubricant's warmth is the target's own.
+                out.push(if temperature {
+                    state_dependent(family)
+                } else {
+                    family
+                });
+            }
+            if axis_signals.position.is_some() {
+                out.push(thermal_family(
+                    Physics::PositionDependent,
+                    vec![axis_column(axis, Quantity::Position), speed_name.clone()],
+                    vec!["tau_s", "lag_ratio"],
+                    thermal_grid(&taus, &[]),
+                    Box::new(move |ctx, _| {
+                        let Some(a) = ctx.axis(axis) else {
+                            return vec![];
+                        };
+                        let Some(position) = a.position.as_ref() else {
+                            return vec![];
+                        };
+                        // Heat deposited where the axis works along its stroke: towards one end
+                        // or the other (the first Legendre mode of the position).
+                        let u = normalised_position(position);
+                        vec![
+                            a.speed
+                                .iter()
+                                .zip(&u)
+                                .map(|(n, u)| n.abs() / 1000.0 * legendre(1, *u))
+                                .collect(),
+                        ]
+                    }),
+                    None,
+                    Some(axis),
+                ));
+            }
+        }
+        if effort {
+            let magnitude = matches!(ctx.class, TargetClass::Effort { magnitude: true });
+            // For a magnitude (current) friction adds in the direction the drive pushes.
+            let oriented = move |ctx: &Context, d: f64, i: usize| {
+                if magnitude {
+                    d * ctx.sim[i].signum()
+                } else {
+                    d
+                }
+            };
+            // Direction-dependent friction shows only where the direction changes; on an
+            // axis that always turns one way (a spindle) a "Coulomb" term is nothing but an
+            // on/off step, which would compete with every speed-dependent effect without
+            // the signature that names it.
+            if !reverses(&axis_signals.speed) {
+                untested.push((
+                    Physics::CoulombReversal,
+                    format!(
+                        "the {} axis never reverses in the real recording",
+                        axis.as_str()
+                    ),
+                ));
+            } else {
+                out.push(Family {
+                    kind: Kind::Physics(Physics::CoulombReversal),
+                    signals: vec![speed_name.clone()],
+                    // The Stribeck speed as a share of the axis's top speed (0: Coulomb alone).
+                    theta_names: vec!["stribeck_share"],
+                    grid: vec![vec![0.0], vec![0.002], vec![0.006], vec![0.02]],
+                    refine: None,
+                    build: Box::new(move |ctx, theta| {
+                        let Some(a) = ctx.axis(axis) else {
+                            return vec![];
+                        };
+                        let coulomb: Vec<f64> = a
+                            .direction
+                            .iter()
+                            .enumerate()
+                            .map(|(i, d)| oriented(ctx, *d, i))
+                            .collect();
+                        let share = theta.first().copied().unwrap_or(0.0);
+                        if share <= 0.0 {
+                            return vec![coulomb];
+                        }
+                        // The extra friction near standstill (Stribeck) that fades with speed.
+                        let top = a.speed.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                        let speed_scale = (share * top).max(1e-9);
+                        let stribeck = coulomb
+                            .iter()
+                            .zip(&a.speed)
+                            .map(|(c, n)| c * (-n.abs() / speed_scale).exp())
+                            .collect();
+                        vec![coulomb, stribeck]
+                    }),
+                    sign: None,
+                    axis: Some(axis),
+                    lagged: false,
+                    state: false,
+                });
+            }
+            if axis_signals.position.is_some() {
+                out.push(Family {
+                    kind: Kind::Physics(Physics::PositionDependent),
+                    signals: vec![axis_column(axis, Quantity::Position), speed_name.clone()],
+                    theta_names: vec![],
+                    grid: vec![vec![]],
+                    refine: None,
+                    build: Box::new(move |ctx, _| {
+                        let Some(a) = ctx.axis(axis) else {
+                            return vec![];
+                        };
+                        let Some(position) = a.position.as_ref() else {
+                            return vec![];
+                        };
+                        // P₀ (the direction alone) is included so that this family nests
+                        // Coulomb friction: a profile whose mean differs from zero is still a
+                        // profile; a flat one is left to `coulomb_reversal` (fewer columns).
+                        let u = normalised_position(position);
+                        (0..=3)
+                            .map(|k| {
+                                a.direction
+                                    .iter()
+                                    .zip(&u)
+                                    .enumerate()
+                                    .map(|(i, (d, u))| oriented(ctx, *d, i) * legendre(k, *u))
+                                    .collect()
+                            })
+                            .collect()
+                    }),
+                    sign: None,
+                    axis: Some(axis),
+                    lagged: false,
+                    state: false,
+                });
+            }
+            if axis_signals.stator.is_some() {
+                out.push(Family {
+                    kind: Kind::Physics(Physics::LubricantViscosity),
+                    signals: vec![speed_name.clone(), axis_column(axis, Quantity::StatorTemp)],
+                    theta_names: vec!["tau_s"],
+                    // τ = 0: the drag alone. Where the lubricant's temperature hardly changes
+                    // (or noise hides how the drag follows it) what remains of the missing
+                    // viscosity physics is a speed-dependent drag of the wrong size: the
+                    // simulation's viscosity is not the one at the running temperature.
+                    grid: std::iter::once(vec![0.0])
+                        .chain(taus.iter().map(|&t| vec![t]))
+                        .collect(),
+                    refine: Some(Refine { log: true }),
+                    build: Box::new(move |ctx, theta| {
+                        let Some(a) = ctx.axis(axis) else {
+                            return vec![];
+                        };
+                        let Some(stator) = a.stator.as_ref() else {
+                            return vec![];
+                        };
+                        // Palmgren's viscous drag grows as (ν n)^(2/3); the lubricant follows
+                        // the motor's warmth with its own lag.
+                        let drag: Vec<f64> = a
+                            .speed
+                            .iter()
+                            .zip(&a.direction)
+                            .enumerate()
+                            .map(|(i, (n, d))| {
+                                oriented(ctx, *d, i) * (n.abs() / 1000.0).powf(2.0 / 3.0)
+                            })
+                            .collect();
+                        if theta[0] <= 0.0 {
+                            return vec![drag];
+                        }
+                        let warmth = lp(ctx, stator, theta[0]);
+                        let w_mean = mean(&warmth);
+                        let falling = drag
+                            .iter()
+                            .zip(&warmth)
+                            .map(|(g, w)| g * (w - w_mean))
+                            .collect();
+                        vec![drag, falling]
+                    }),
+                    sign: Some(GainLimit::negative(1)),
+                    axis: Some(axis),
+                    lagged: false,
+                    state: false,
+                });
+            }
+        }
+    }
+    (out, untested)
+}
+
+/// Steady-state gain and mean time constant of one driver's lags: the gain is the sum of the
+/// coefficients, the time constant the gain-weighted mean (the first moment of the step
+/// response) when both lags push the same way, otherwise the dominant lag's.
+fn lag_summary(coefficients: &[f64], lags: &[f64]) -> (f64, f64) {
+    let gain: f64 = coefficients.iter().sum();
+    let same_sign = coefficients.iter().all(|c| c.signum() == gain.signum());
+    let tau = if same_sign && gain != 0.0 {
+        coefficients
+            .iter()
+            .zip(lags)
+            .map(|(c, t)| c * t)
+            .sum::<f64>()
+            / gain
+    } else {
+        coefficients
+            .iter()
+            .zip(lags)
+            .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
+            .map_or(0.0, |(_, t)| *t)
+    };
+    (gain, tau)
+}
+
+/// Parameters in physical units and a sentence, for a selected member.
+///
+/// `coefficients` are the raw-unit coefficients of the member's columns in the final fit,
+/// `columns` the member's full-rate columns.
+pub fn explain(
+    family: &Family,
+    theta: &[f64],
+    coefficients: &[f64],
+    columns: &[Vec<f64>],
+    ctx: &Context,
+) -> (BTreeMap<String, f64>, String) {
+    let mut p = BTreeMap::new();
+    let unit = if ctx.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", ctx.unit)
+    };
+    let target = &ctx.target;
+    let lags = family.lags(theta);
+    let driver = |d: usize| -> (f64, f64) {
+        let range = family.driver_columns(theta, d);
+        let slice = coefficients.get(range).unwrap_or(&[]);
+        lag_summary(slice, &lags)
+    };
+    let (g0, tau0) = driver(0);
+    let tau_min = tau0 / 60.0;
+    if family.lagged {
+        p.insert("tau_min".into(), tau_min);
+        for (i, l) in lags.iter().enumerate() {
+            p.insert(format!("lag{}_min", i + 1), l / 60.0);
+        }
+    }
+    let axis_name = family.axis.map(|a| a.as_str()).unwrap_or("");
+    let total: Vec<f64> = (0..ctx.time.len())
+        .map(|i| {
+            columns
+                .iter()
+                .zip(coefficients)
+                .map(|(c, b)| c[i] * b)
+                .sum()
+        })
+        .collect();
+    let span = quantile(&total, 0.99) - quantile(&total, 0.01);
+    p.insert("effect_range".into(), span);
+    let c0 = coefficients.first().copied().unwrap_or(0.0);
+    let text = match family.kind {
+        Kind::CalibrationGain => {
+            p.insert("gain".into(), 1.0 + c0);
+            format!(
+                "calibration: the real {target} is {:.4} × the simulated one",
+                1.0 + c0
+            )
+        }
+        Kind::Physics(Physics::ThermalInertia) => {
+            p.insert("share".into(), g0);
+            if g0 >= 0.0 {
+                format!(
+                    "the real {target} lags the simulated one like a missing heat capacity: first-order lag τ = {tau_min:.1} min (share {g0:.2})"
+                )
+            } else {
+                format!(
+                    "the real {target} leads the simulated one: the simulation's heat capacity is too large (τ = {tau_min:.1} min, share {:.2})",
+                    -g0
+                )
+            }
+        }
+        Kind::Physics(Physics::SignalDelay) => {
+            let d = theta.first().copied().unwrap_or(0.0);
+            p.insert("delay_s".into(), d);
+            p.insert("share".into(), c0);
+            if d >= 0.0 {
+                format!(
+                    "the measured {target} trails the simulated one by {d:.1} s (transport delay; share {c0:.2})"
+                )
+            } else {
+                format!(
+                    "the measured {target} runs {:.1} s ahead of the simulated one (the simulation is late; share {c0:.2})",
+                    -d
+                )
+            }
+        }
+        Kind::Physics(Physics::SensorOffsetDrift) => {
+            p.insert("drift_per_hour".into(), c0);
+            format!(
+                "the {target} instrument drifts by {c0:+.3}{unit}/h over the recording (slow linear drift of the measurement)"
+            )
+        }
+        Kind::Physics(Physics::AmbientTemperature) => {
+            p.insert("gain_per_K".into(), g0);
+            format!(
+                "the {target} follows room temperature (`{AMBIENT}`) with τ = {tau_min:.0} min and {g0:.3}{unit}/K"
+            )
+        }
+        Kind::Physics(Physics::Coolant) => {
+            let coolant = ctx.coolant.as_deref().unwrap_or(&[]);
+            let split = |on: bool| {
+                let values: Vec<f64> = coolant
+                    .iter()
+                    .zip(&total)
+                    .filter(|(c, _)| (**c > 0.5) == on)
+                    .map(|(_, e)| *e)
+                    .collect();
+                mean(&values)
+            };
+            let shift = split(true) - split(false);
+            p.insert("effect_while_on".into(), shift);
+            format!(
+                "while coolant flows (`{COOLANT}` = 1) the {target} is {:.3}{unit} {} than simulated on average, settling with τ = {tau_min:.0} min",
+                shift.abs(),
+                if shift < 0.0 { "lower" } else { "higher" }
+            )
+        }
+        Kind::Physics(Physics::SpeedDependentCooling) => {
+            let exponent = theta.get(1).copied().unwrap_or(1.0);
+            p.insert("exponent".into(), exponent);
+            p.insert("relative_change_at_1000rpm".into(), g0);
+            format!(
+                "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with τ = {tau_min:.0} min",
+                100.0 * g0
+            )
+        }
+        Kind::Physics(Physics::CopperLoss) => {
+            let current = ctx
+                .axis_of(family.axis)
+                .and_then(|a| a.current.as_ref())
+                .map_or(0.0, |c| super::series::rms(c));
+            p.insert("per_A2".into(), g0);
+            p.insert("at_rms_current".into(), g0 * current * current);
+            format!(
+                "I²R heating of the {axis_name} motor: {g0:.3e}{unit}/A² (≈ {:.3}{unit} at its rms current of {current:.1} A), through τ = {tau_min:.0} min",
+                g0 * current * current
+            )
+        }
+        Kind::Physics(Physics::IronLoss) => {
+            let (g1, _) = driver(1);
+            p.insert("per_krpm".into(), g0);
+            p.insert("per_krpm2".into(), g1);
+            format!(
+                "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)², through τ = {tau_min:.0} min"
+            )
+        }
+        Kind::Physics(Physics::LubricantViscosity) => {
+            let (extra, falling) = if family.lagged {
+                (g0, driver(1).0)
+            } else {
+                (c0, coefficients.get(1).copied().unwrap_or(0.0))
+            };
+            let relative = if extra.abs() > 1e-12 {
+                100.0 * falling / extra.abs()
+            } else {
+                0.0
+            };
+            p.insert("friction_change".into(), extra);
+            if !family.lagged && coefficients.len() < 2 {
+                format!(
+                    "{axis_name} viscous drag differs from the simulation's: {extra:+.4}{unit} at 1000 rpm, growing as n^(2/3) (the lubricant's viscosity at its running temperature is not the simulated one; how the drag follows the temperature is not resolved in this recording)"
+                )
+            } else if !family.lagged {
+                p.insert("temperature_coefficient_per_K".into(), falling);
+                p.insert("percent_per_K".into(), relative);
+                p.insert("tau_min".into(), tau_min);
+                format!(
+                    "{axis_name} friction torque falls as the lubricant warms: {falling:+.4}{unit}/K at 1000 rpm ({relative:+.1} %/K of the speed-dependent drag), the lubricant lagging the motor by τ = {tau_min:.0} min"
+                )
+            } else {
+                p.insert("temperature_coefficient_per_K".into(), falling);
+                p.insert("percent_per_K".into(), relative);
+                format!(
+                    "friction heat of the {axis_name} axis falls as the lubricant warms ({falling:+.3e}{unit} per W·K), through τ = {tau_min:.0} min"
+                )
+            }
+        }
+        Kind::Physics(Physics::CoulombReversal) => {
+            p.insert("friction_step".into(), c0);
+            if let Some(c1) = coefficients.get(1) {
+                p.insert("stribeck_excess".into(), *c1);
+            }
+            format!(
+                "direction-dependent {axis_name} friction of ±{:.4}{unit} (a {:.4}{unit} jump at every reversal) that the simulation {}",
+                c0.abs(),
+                2.0 * c0.abs(),
+                if c0 >= 0.0 { "lacks" } else { "overstates" }
+            )
+        }
+        Kind::Physics(Physics::PositionDependent) => {
+            let (pmin, pmax) = ctx
+                .axis_of(family.axis)
+                .and_then(|a| a.position.as_ref())
+                .map_or((-1.0, 1.0), |p| (quantile(p, 0.001), quantile(p, 0.999)));
+            let to_position = |u: f64| pmin + (u + 1.0) / 2.0 * (pmax - pmin);
+            if family.lagged {
+                format!(
+                    "heat enters where the {axis_name} axis works along its stroke ({:.0}–{:.0}): the {target} depends on where it runs (effect range {span:.3}{unit}), through τ = {tau_min:.0} min",
+                    pmin, pmax
+                )
+            } else {
+                // The fitted friction profile along the stroke, from its Legendre terms.
+                let profile = |u: f64| -> f64 {
+                    coefficients
+                        .iter()
+                        .enumerate()
+                        .map(|(j, c)| c * legendre(j, u))
+                        .sum()
+                };
+                let (mut lo, mut hi) = ((f64::INFINITY, 0.0), (f64::NEG_INFINITY, 0.0));
+                for s in 0..=100 {
+                    let u = -1.0 + 2.0 * f64::from(s) / 100.0;
+                    let v = profile(u);
+                    if v < lo.0 {
+                        lo = (v, u);
+                    }
+                    if v > hi.0 {
+                        hi = (v, u);
+                    }
+                }
+                p.insert("variation".into(), hi.0 - lo.0);
+                p.insert("lowest_at".into(), to_position(lo.1));
+                p.insert("highest_at".into(), to_position(hi.1));
+                format!(
+                    "{axis_name} friction varies along the stroke by {:.4}{unit} (lowest at {:.0}, highest at {:.0} of {:.0}–{:.0}): preload or alignment changing along the screw",
+                    hi.0 - lo.0,
+                    to_position(lo.1),
+                    to_position(hi.1),
+                    pmin,
+                    pmax
+                )
+            }
+        }
+    };
+    (p, text)
+}

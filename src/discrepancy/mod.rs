@@ -1,0 +1,1068 @@
+//! Sim-vs-real discrepancy: locate where a simulation and a real recording disagree on a
+//! target, say which physics the simulation left out, model it with fitted parameters, and show
+//! the fit improve out of sample.
+//!
+//! The pipeline ([`analyse`]):
+//! 1. [`align`]: join on `time_s` (interpolating the simulation when the grids differ);
+//!    the residual is real − sim.
+//! 2. [`library`]: every vocabulary id as a parametric correction built from the real
+//!    recording's signals and the simulated target (first-order lags with fitted τ, estimated
+//!    delays, friction signatures), plus a gain miscalibration that competes with them.
+//! 3. [`select`]: stepwise, scored by time-blocked cross-validation ([`cv`]) and tested against
+//!    phase-randomised surrogates of the residual (max gain over the whole library), so neither
+//!    autocorrelated noise nor the size of the library produce false discoveries. The offset is
+//!    always absorbed; a gain is reported as calibration, never as physics.
+//! 4. Refit on all rows with refined parameters; before/after R² and RMSE, the after figures on
+//!    held-out time blocks.
+//! 5. [`localise`]: mismatch regions against a noise floor taken from the held-out residual,
+//!    with the operating conditions there and where the simulation is right.
+//!
+//! ```no_run
+//! use servosight::discrepancy::{Options, analyse};
+//! use servosight::signal::read_recording;
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let sim = read_recording("sim.csv".as_ref())?;
+//! let real = read_recording("real.csv".as_ref())?;
+//! let report = analyse(&sim, &real, "S.stator_temp_C", &Options::default())?;
+//! println!("{}", report.summary());
+//! # Ok(())
+//! # }
+//! ```
+
+pub mod align;
+pub mod cv;
+pub mod library;
+pub mod localise;
+pub mod report;
+pub mod select;
+pub mod series;
+
+use std::collections::BTreeMap;
+
+pub use library::Physics;
+pub use localise::Region;
+pub use report::{
+    Alignment, Alternative, Calibration, DiscrepancyReport, Finding, FitQuality, Method,
+    NoiseFloor, NotTested, PlotData, StepTrace, Verdict,
+};
+
+use align::Aligned;
+use cv::{Blocks, ModelGram, TargetStats, least_squares};
+use library::{Context, Family, Kind, families};
+use select::{Member, Problem, Step, Store, stepwise};
+use series::{bin_means, bin_ranges, integrated_autocorrelation, mean};
+
+/// Why an analysis could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum DiscrepancyError {
+    /// The target column is missing from one of the recordings.
+    #[error("the target `{target}` is not a column of the {role} {source_name}")]
+    MissingTarget {
+        /// "simulation" or "real recording".
+        role: &'static str,
+        /// The file.
+        source_name: String,
+        /// The target.
+        target: String,
+    },
+    /// The recordings do not overlap in time.
+    #[error("the recordings do not overlap in time: {sim}; {real}")]
+    NoOverlap {
+        /// The simulation's span.
+        sim: String,
+        /// The real recording's span.
+        real: String,
+    },
+    /// Too few overlapping rows for a time-blocked analysis.
+    #[error("only {rows} rows overlap in time; the analysis needs at least {needed}")]
+    TooShort {
+        /// Rows in the overlap.
+        rows: usize,
+        /// Rows needed.
+        needed: usize,
+    },
+    /// An option is out of range.
+    #[error("invalid option {name} = {value}: {requirement}")]
+    InvalidOption {
+        /// The option.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        requirement: &'static str,
+    },
+}
+
+/// Settings of the analysis. The defaults are what the proof in `docs/discrepancy.md` ran.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Time-blocked cross-validation folds.
+    pub folds: usize,
+    /// Blocks per fold (one gap block on each side of a held-out run is left out of training).
+    pub blocks_per_fold: usize,
+    /// Phase-randomised surrogates per selection step.
+    pub surrogates: usize,
+    /// Significance level of a step (with 99 surrogates, 0.01 means: better than every one).
+    pub alpha: f64,
+    /// A finding must also lie beyond this upper-tail probability of a Gumbel law fitted to
+    /// the surrogates' maxima (so that barely beating the largest surrogate is not enough)…
+    pub tail_alpha: f64,
+    /// …unless its held-out gain is at least this share of the error before the step.
+    pub dominant_gain: f64,
+    /// Smallest held-out gain worth reporting, as a share of the held-out error before the step.
+    pub min_relative_gain: f64,
+    /// Most selection steps (calibration and physics together).
+    pub max_steps: usize,
+    /// The selection runs on at most this many rows (bin means of the aligned rows; the model
+    /// is linear in its coefficients, so bin means keep its form). The final refit and every
+    /// reported figure use all rows.
+    pub max_selection_rows: usize,
+    /// A runner-up whose block-by-block held-out error is not worse than the winner's by at
+    /// least this paired t statistic is reported as indistinguishable.
+    pub distinguish_t: f64,
+    /// Seed of the surrogates.
+    pub seed: u64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            folds: 8,
+            blocks_per_fold: 4,
+            surrogates: 99,
+            alpha: 0.01,
+            tail_alpha: 1e-4,
+            dominant_gain: 0.8,
+            min_relative_gain: 0.02,
+            max_steps: 4,
+            max_selection_rows: 8192,
+            distinguish_t: 2.0,
+            seed: 0x5EED_D15C,
+        }
+    }
+}
+
+impl Options {
+    fn validate(&self) -> Result<(), DiscrepancyError> {
+        let checks: [(&'static str, f64, bool, &'static str); 5] = [
+            ("folds", self.folds as f64, self.folds >= 2, "at least 2"),
+            (
+                "surrogates",
+                self.surrogates as f64,
+                self.surrogates >= 1,
+                "at least 1",
+            ),
+            (
+                "alpha",
+                self.alpha,
+                self.alpha > 0.0 && self.alpha < 1.0,
+                "strictly between 0 and 1",
+            ),
+            (
+                "max_selection_rows",
+                self.max_selection_rows as f64,
+                self.max_selection_rows >= 64,
+                "at least 64",
+            ),
+            (
+                "blocks_per_fold",
+                self.blocks_per_fold as f64,
+                self.blocks_per_fold >= 1,
+                "at least 1",
+            ),
+        ];
+        for (name, value, ok, requirement) in checks {
+            if !ok {
+                return Err(DiscrepancyError::InvalidOption {
+                    name,
+                    value,
+                    requirement,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A selected correction at its refined parameters.
+struct Selected {
+    family: usize,
+    theta: Vec<f64>,
+    step: Step,
+}
+
+/// Builds a member's full-rate columns; empty when the family could not build them.
+fn build(family: &Family, ctx: &Context, theta: &[f64]) -> Vec<Vec<f64>> {
+    let columns = (family.build)(ctx, theta);
+    if columns
+        .iter()
+        .all(|c| c.len() == ctx.time.len() && c.iter().all(|v| v.is_finite()))
+    {
+        columns
+    } else {
+        Vec::new()
+    }
+}
+
+/// Standardises columns for the normal equations; returns them with their (mean, sd).
+fn standardised(columns: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<(f64, f64)>) {
+    columns
+        .iter()
+        .map(|c| {
+            let m = mean(c);
+            let s = series::std_dev(c);
+            let s = if s > 0.0 { s } else { 1.0 };
+            (c.iter().map(|v| (v - m) / s).collect(), (m, s))
+        })
+        .unzip()
+}
+
+/// Analyses `real` against `sim` for `target`.
+pub fn analyse(
+    sim: &crate::signal::Recording,
+    real: &crate::signal::Recording,
+    target: &str,
+    options: &Options,
+) -> Result<DiscrepancyReport, DiscrepancyError> {
+    options.validate()?;
+    let aligned = Aligned::new(sim, real, target)?;
+    let n = aligned.len();
+    let ctx = Context::new(&aligned, target);
+    let residual: Vec<f64> = aligned
+        .real_target
+        .iter()
+        .zip(&aligned.sim_target)
+        .map(|(r, s)| r - s)
+        .collect();
+    let (families, untested) = families(&ctx);
+
+    // The selection works on bin means (all rows when there are few enough).
+    let bins = bin_ranges(n, options.max_selection_rows);
+    let y_binned = bin_means(&residual, &bins);
+    let mut store = Store::default();
+    let mut members = Vec::new();
+    let grid: Vec<(usize, &Vec<f64>)> = families
+        .iter()
+        .enumerate()
+        .flat_map(|(index, family)| family.grid.iter().map(move |theta| (index, theta)))
+        .collect();
+    let built = series::parallel_map(&grid, |&(index, theta)| {
+        build(&families[index], &ctx, theta)
+            .iter()
+            .map(|c| bin_means(c, &bins))
+            .collect::<Vec<Vec<f64>>>()
+    });
+    for ((index, theta), binned) in grid.into_iter().zip(built) {
+        if binned.is_empty() {
+            continue;
+        }
+        let range = store.push(binned);
+        members.push(Member {
+            family: index,
+            theta: theta.clone(),
+            columns: range,
+        });
+    }
+    let blocks = Blocks::new(y_binned.len(), options.folds, options.blocks_per_fold);
+    let highpass_window = (y_binned.len() / 256).max(5);
+    let mut views = series::parallel_map(&[false, true], |&high| {
+        if high {
+            select::View::highpassed(&store, highpass_window)
+        } else {
+            select::View::raw(&store)
+        }
+    });
+    views.truncate(2);
+    // Every accepted correction at its current parameters, and the target's state correction
+    // the state-dependent ones are rebuilt on; both are updated jointly after each acceptance.
+    let mut joint = Joint {
+        families: &families,
+        blocks: &blocks,
+        highpass_window,
+        ctx: &ctx,
+        bins: &bins,
+        y: &y_binned,
+        accepted: Vec::new(),
+        active: Vec::new(),
+        min_relative_gain: options.min_relative_gain,
+        state: None,
+    };
+    let steps = stepwise(
+        &Problem {
+            y: &y_binned,
+            views: &views,
+            blocks: &blocks,
+            members: &members,
+            families: &families,
+            store: &store,
+        },
+        options,
+        &mut |member, base| joint.accept(members[member].family, &members[member].theta, base),
+    );
+    let state_ctx = joint.state_context();
+    let accepted = std::mem::take(&mut joint.accepted);
+    let active = std::mem::take(&mut joint.active);
+    // Which steps were withdrawn, in step order (for the trace).
+    let withdrawn: Vec<bool> = {
+        let mut flags = active.iter().map(|a| !a);
+        steps
+            .iter()
+            .map(|s| s.accepted && flags.next().unwrap_or(false))
+            .collect()
+    };
+    let selected: Vec<Selected> = steps
+        .iter()
+        .filter(|s| s.accepted)
+        .zip(accepted.into_iter().zip(active))
+        .filter(|(_, (_, active))| *active)
+        .map(|(step, ((family, theta), _))| Selected {
+            family,
+            theta,
+            step: step.clone(),
+        })
+        .collect();
+    let ctx_of = |family: usize| {
+        if families[family].state {
+            &state_ctx
+        } else {
+            &ctx
+        }
+    };
+
+    // Final model on all rows: offset + every selected correction.
+    let selected_columns: Vec<Vec<Vec<f64>>> = selected
+        .iter()
+        .map(|s| build(&families[s.family], ctx_of(s.family), &s.theta))
+        .collect();
+    let ones = vec![1.0; n];
+    let raw: Vec<Vec<f64>> = selected_columns.iter().flatten().cloned().collect();
+    let (standard, scales) = standardised(&raw);
+    let mut design: Vec<&[f64]> = vec![&ones];
+    design.extend(standard.iter().map(|c| c.as_slice()));
+    let (beta, _) = least_squares(&design, &residual).unwrap_or_else(|| {
+        let mut b = vec![0.0; design.len()];
+        b[0] = mean(&residual);
+        (b, 0.0)
+    });
+    // Raw-unit coefficients and the offset.
+    let raw_coefficients: Vec<f64> = beta[1..]
+        .iter()
+        .zip(&scales)
+        .map(|(b, (_, s))| b / s)
+        .collect();
+    let offset = beta[0]
+        - beta[1..]
+            .iter()
+            .zip(&scales)
+            .map(|(b, (m, s))| b * m / s)
+            .sum::<f64>();
+
+    // Held-out figures after each accepted step, on all rows.
+    let full_blocks = Blocks::new(n, options.folds, options.blocks_per_fold);
+    let real_mean = mean(&aligned.real_target);
+    let ss_total: f64 = aligned
+        .real_target
+        .iter()
+        .map(|v| (v - real_mean).powi(2))
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    let mut held_out = Vec::with_capacity(selected.len() + 1);
+    let mut cv_residual = residual.clone();
+    let mut offsets = vec![0usize];
+    for c in &selected_columns {
+        offsets.push(offsets.last().copied().unwrap_or(0) + c.len());
+    }
+    for k in 0..=selected.len() {
+        let columns: Vec<&[f64]> = design[..1 + offsets[k]].to_vec();
+        let gram = ModelGram::new(&columns, &full_blocks);
+        let zty: Vec<Vec<f64>> = columns
+            .iter()
+            .map(|c| full_blocks.dots(c, &residual))
+            .collect();
+        let yty = full_blocks.dots(&residual, &residual);
+        let stats = TargetStats {
+            zty: zty.iter().map(|v| v.as_slice()).collect(),
+            yty: &yty,
+        };
+        let predicted = gram
+            .cv_predictions(&columns, &stats, &full_blocks)
+            .unwrap_or_else(|| vec![mean(&residual); n]);
+        let errors: Vec<f64> = residual
+            .iter()
+            .zip(&predicted)
+            .map(|(r, p)| r - p)
+            .collect();
+        let sse: f64 = errors.iter().map(|e| e * e).sum();
+        held_out.push(FitQuality {
+            r2: 1.0 - sse / ss_total,
+            rmse: (sse / n as f64).sqrt(),
+        });
+        if k == selected.len() {
+            cv_residual = errors;
+        }
+    }
+
+    // Each correction's own share in the joint model: the held-out R² lost without it.
+    let without: Vec<FitQuality> = (0..selected.len())
+        .map(|k| {
+            let mut columns: Vec<&[f64]> = vec![&ones];
+            columns.extend(
+                design[1..]
+                    .iter()
+                    .enumerate()
+                    .filter(|(c, _)| !(offsets[k]..offsets[k + 1]).contains(c))
+                    .map(|(_, c)| *c),
+            );
+            held_out_quality(&columns, &residual, &full_blocks, ss_total)
+        })
+        .collect();
+
+    // Calibration and findings.
+    let mut calibration_gain = None;
+    let mut findings = Vec::new();
+    for (k, s) in selected.iter().enumerate() {
+        let family = &families[s.family];
+        let coefficients = &raw_coefficients[offsets[k]..offsets[k + 1]];
+        match family.kind {
+            Kind::CalibrationGain => {
+                calibration_gain = Some((coefficients[0], held_out[k + 1].r2 - held_out[k].r2));
+            }
+            Kind::Physics(physics) => {
+                let (mut parameters, explanation) = library::explain(
+                    family,
+                    &s.theta,
+                    coefficients,
+                    &selected_columns[k],
+                    ctx_of(s.family),
+                );
+                if physics == Physics::SensorOffsetDrift {
+                    parameters.insert("offset_at_start".into(), offset);
+                }
+                let name_of = |member: usize| match families[members[member].family].kind {
+                    Kind::Physics(p) => p.id().to_string(),
+                    Kind::CalibrationGain => "calibration".to_string(),
+                };
+                findings.push(Finding {
+                    physics: physics.id().to_string(),
+                    explanation,
+                    parameters,
+                    signals: family.signals.clone(),
+                    delta_r2: held_out[selected.len()].r2 - without[k].r2,
+                    p_value: s.step.p_value,
+                    indistinguishable_from: s
+                        .step
+                        .indistinguishable
+                        .iter()
+                        .map(|&m| name_of(m))
+                        .collect(),
+                    alternatives: s
+                        .step
+                        .runners_up
+                        .iter()
+                        .take(3)
+                        .map(|&(m, g)| Alternative {
+                            physics: name_of(m),
+                            relative_gain: if s.step.gain > 0.0 {
+                                g / s.step.gain
+                            } else {
+                                0.0
+                            },
+                        })
+                        .collect(),
+                });
+            }
+        }
+    }
+    // Strongest first: by what each finding adds to the joint model, not by when it entered
+    // (a correction that entered first may have taken a share of a later one's effect).
+    findings.sort_by(|a, b| b.delta_r2.total_cmp(&a.delta_r2));
+    let gain = 1.0 + calibration_gain.map_or(0.0, |(g, _)| g);
+    let unit = crate::signal::channel::Channel::unit_of(target).unwrap_or("");
+    let calibration = Calibration {
+        offset,
+        gain,
+        gain_absorbed: calibration_gain.is_some(),
+        explanation: if calibration_gain.is_some() {
+            format!(
+                "calibration absorbed first: real ≈ {offset:+.4} {unit} + {gain:.4} × sim (a gain miscalibration, not physics)"
+            )
+        } else {
+            format!(
+                "calibration: an offset of {offset:+.4} {unit} at the start; no gain miscalibration was significant"
+            )
+        },
+    };
+    // The calibrated-only held-out figure: offset, plus the gain when it was absorbed.
+    let calibrated = {
+        let mut columns: Vec<&[f64]> = vec![&ones];
+        if calibration_gain.is_some() {
+            columns.push(&aligned.sim_target);
+        }
+        let (standard_cal, _) =
+            standardised(&columns[1..].iter().map(|c| c.to_vec()).collect::<Vec<_>>());
+        let mut cols: Vec<&[f64]> = vec![&ones];
+        cols.extend(standard_cal.iter().map(|c| c.as_slice()));
+        held_out_quality(&cols, &residual, &full_blocks, ss_total)
+    };
+
+    // Mismatch: what the calibrated simulation does not explain (corrections + residual).
+    let mut mismatch: Vec<f64> = residual.iter().map(|r| r - offset).collect();
+    for (k, s) in selected.iter().enumerate() {
+        if families[s.family].kind == Kind::CalibrationGain {
+            let g = raw_coefficients[offsets[k]];
+            for (m, sim) in mismatch.iter_mut().zip(&aligned.sim_target) {
+                *m -= g * sim;
+            }
+        }
+    }
+    let conditions = localise::Conditions::new(&aligned);
+    let located = localise::localise(&ctx.time, &mismatch, &cv_residual, &conditions);
+    let noise_floor = NoiseFloor {
+        rms: series::rms(&cv_residual),
+        correlation_time_s: integrated_autocorrelation(&cv_residual, (n / 10).clamp(2, 20_000))
+            * ctx.step_s,
+        window_s: located.window_s,
+    };
+
+    let fitted: Vec<f64> = (0..n)
+        .map(|i| design.iter().zip(&beta).map(|(c, b)| c[i] * b).sum())
+        .collect();
+    let plot_bins = bin_ranges(n, 4000);
+    let corrected: Vec<f64> = aligned
+        .sim_target
+        .iter()
+        .zip(&fitted)
+        .map(|(s, f)| s + f)
+        .collect();
+    let plot = PlotData {
+        target: target.to_string(),
+        time_s: bin_means(&ctx.time, &plot_bins),
+        real: bin_means(&aligned.real_target, &plot_bins),
+        sim: bin_means(&aligned.sim_target, &plot_bins),
+        corrected: bin_means(&corrected, &plot_bins),
+        residual_before: bin_means(&residual, &plot_bins),
+        residual_after: bin_means(&cv_residual, &plot_bins),
+        regions: located.mismatch.clone(),
+    };
+    let baseline_sse: f64 = residual.iter().map(|r| r * r).sum();
+    let mut not_tested: Vec<NotTested> = untested
+        .into_iter()
+        .map(|(p, reason)| NotTested {
+            physics: p.id().to_string(),
+            reason,
+        })
+        .collect();
+    not_tested.dedup();
+    Ok(DiscrepancyReport {
+        target: target.to_string(),
+        rows: n,
+        verdict: if findings.is_empty() {
+            Verdict::Consistent
+        } else {
+            Verdict::MissingPhysics
+        },
+        baseline: FitQuality {
+            r2: 1.0 - baseline_sse / ss_total,
+            rmse: (baseline_sse / n as f64).sqrt(),
+        },
+        improved: held_out.last().copied().unwrap_or(calibrated),
+        calibrated,
+        mismatch_regions: located.mismatch,
+        agreement_regions: located.agreement,
+        findings,
+        calibration,
+        noise_floor,
+        alignment: Alignment {
+            resampled: aligned.resampled,
+            note: aligned.note(),
+            start_s: ctx.time.first().copied().unwrap_or(0.0),
+            end_s: ctx.time.last().copied().unwrap_or(0.0),
+        },
+        not_tested,
+        method: Method {
+            folds: options.folds,
+            surrogates: options.surrogates,
+            alpha: options.alpha,
+            selection_rows: y_binned.len(),
+            candidates: members.len(),
+            steps: steps
+                .iter()
+                .zip(withdrawn)
+                .map(|(s, withdrawn)| report::StepTrace {
+                    physics: match families[members[s.member].family].kind {
+                        Kind::Physics(p) => p.id().to_string(),
+                        Kind::CalibrationGain => "calibration".to_string(),
+                    },
+                    relative_gain: if s.sse_before > 0.0 {
+                        s.gain / s.sse_before
+                    } else {
+                        0.0
+                    },
+                    p_value: s.p_value,
+                    tail_p: s.tail_p,
+                    accepted: s.accepted,
+                    withdrawn,
+                })
+                .collect(),
+        },
+        plot,
+    })
+}
+
+/// Held-out sum of squared errors of `y` on `columns` (the intercept first).
+fn held_out_sse(columns: &[&[f64]], y: &[f64], blocks: &Blocks) -> f64 {
+    let gram = ModelGram::new(columns, blocks);
+    let zty: Vec<Vec<f64>> = columns.iter().map(|c| blocks.dots(c, y)).collect();
+    let yty = blocks.dots(y, y);
+    let stats = TargetStats {
+        zty: zty.iter().map(|v| v.as_slice()).collect(),
+        yty: &yty,
+    };
+    gram.cv_sse(&stats, blocks)
+        .unwrap_or_else(|| y.iter().map(|v| v * v).sum())
+}
+
+/// Held-out R² and RMSE of `y` on `columns` (the intercept first).
+fn held_out_quality(columns: &[&[f64]], y: &[f64], blocks: &Blocks, ss_total: f64) -> FitQuality {
+    let gram = ModelGram::new(columns, blocks);
+    let zty: Vec<Vec<f64>> = columns.iter().map(|c| blocks.dots(c, y)).collect();
+    let yty = blocks.dots(y, y);
+    let stats = TargetStats {
+        zty: zty.iter().map(|v| v.as_slice()).collect(),
+        yty: &yty,
+    };
+    let sse = gram
+        .cv_sse(&stats, blocks)
+        .unwrap_or_else(|| y.iter().map(|v| v * v).sum());
+    FitQuality {
+        r2: 1.0 - sse / ss_total,
+        rmse: (sse / y.len().max(1) as f64).sqrt(),
+    }
+}
+
+/// A member's columns as bin means, standardised (what the selection works on).
+fn binned_standardised(
+    family: &Family,
+    ctx: &Context,
+    theta: &[f64],
+    bins: &[std::ops::Range<usize>],
+) -> Vec<Vec<f64>> {
+    build(family, ctx, theta)
+        .iter()
+        .map(|c| select::standardise(&bin_means(c, bins)).0)
+        .collect()
+}
+
+/// Rounds of the joint refit after each acceptance (time constants member by member, then the
+/// state correction to convergence).
+const JOINT_ROUNDS: usize = 3;
+
+/// Most fixed-point iterations of the state correction per round.
+const STATE_ITERATIONS: usize = 12;
+
+/// The accepted corrections, refitted jointly.
+///
+/// After a correction is accepted, every accepted correction's time constant (or delay) is
+/// refined again with all the others in the model, one member at a time, and the
+/// state-dependent ones ([`Family::state`]) are rebuilt on the corrected simulation until the
+/// correction they produce reproduces itself (a fixed point: extra cooling acting on the
+/// temperature the part really has). The next stepwise step then works on the residual of
+/// this joint model, so a first correction that took a share of a second effect gives it back
+/// once the second is in the model.
+struct Joint<'a> {
+    families: &'a [Family],
+    /// The selection's blocks (on the binned rows), for choosing members by held-out error.
+    blocks: &'a Blocks,
+    /// Moving-average window of the selection's high-passed view, bins.
+    highpass_window: usize,
+    ctx: &'a Context,
+    bins: &'a [std::ops::Range<usize>],
+    y: &'a [f64],
+    /// (family, parameters) in the order accepted.
+    accepted: Vec<(usize, Vec<f64>)>,
+    /// Whether each accepted correction is still in the model (a later one may make it
+    /// redundant: see [`Joint::prune`]).
+    active: Vec<bool>,
+    /// Smallest held-out gain a correction must keep in the joint model, as a share of the
+    /// held-out error without it.
+    min_relative_gain: f64,
+    /// Full-rate correction of the target's state (sum of the fitted physical corrections).
+    state: Option<Vec<f64>>,
+}
+
+impl Joint<'_> {
+    /// The context state-dependent families are built on.
+    fn state_context(&self) -> Context {
+        match &self.state {
+            Some(state) => self.ctx.with_state(state),
+            None => self.ctx.clone(),
+        }
+    }
+
+    /// Binned, standardised columns of every accepted correction on `state_ctx`.
+    fn columns(&self, state_ctx: &Context, skip: Option<usize>) -> Vec<Vec<f64>> {
+        self.accepted
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| Some(*k) != skip && self.active[*k])
+            .flat_map(|(_, (family, theta))| {
+                let family = &self.families[*family];
+                let ctx = if family.state { state_ctx } else { self.ctx };
+                binned_standardised(family, ctx, theta, self.bins)
+            })
+            .collect()
+    }
+
+    /// Accepts a member refined on top of `base`, refits everything jointly and returns the
+    /// new base columns (the intercept excluded) for the next step.
+    fn accept(&mut self, family: usize, theta: &[f64], base: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let state_ctx = self.state_context();
+        let ctx = if self.families[family].state {
+            &state_ctx
+        } else {
+            self.ctx
+        };
+        let theta = refine_member(&self.families[family], theta, base, ctx, self.bins, self.y);
+        self.accepted.push((family, theta));
+        self.active.push(true);
+        self.refit_jointly();
+        while self.prune() {
+            self.refit_jointly();
+        }
+        self.columns(&self.state_context(), None)
+    }
+
+    /// Refits every active correction: time constants one member at a time, and the state
+    /// correction to its fixed point.
+    fn refit_jointly(&mut self) {
+        let ones = vec![1.0; self.y.len()];
+        let stateful = self
+            .accepted
+            .iter()
+            .zip(&self.active)
+            .any(|((f, _), a)| *a && self.families[*f].state);
+        if !stateful {
+            self.state = None;
+        }
+        let active = self.active.iter().filter(|a| **a).count();
+        for round in 0..JOINT_ROUNDS {
+            // Time constants, one member at a time with all the others in the model (with a
+            // single correction the refinement above already did this).
+            if active > 1 || (stateful && round > 0) {
+                let state_ctx = self.state_context();
+                for k in 0..self.accepted.len() {
+                    if !self.active[k] {
+                        continue;
+                    }
+                    let mut others = vec![ones.clone()];
+                    others.extend(self.columns(&state_ctx, Some(k)));
+                    let (family, theta) = &self.accepted[k];
+                    let family_ref = &self.families[*family];
+                    let ctx = if family_ref.state {
+                        &state_ctx
+                    } else {
+                        self.ctx
+                    };
+                    let chosen = self.reselect(*family, theta, &others, ctx);
+                    let refined =
+                        refine_member(family_ref, &chosen, &others, ctx, self.bins, self.y);
+                    self.accepted[k].1 = refined;
+                }
+            }
+            if !stateful {
+                break;
+            }
+            self.settle_state();
+        }
+    }
+
+    /// Backward elimination in the joint model: with more than one correction in it, the one
+    /// whose removal costs the least held-out error is withdrawn when that cost is below the
+    /// smallest gain a step must bring (a later, better correction explains what it took).
+    /// Returns whether one was withdrawn.
+    fn prune(&mut self) -> bool {
+        let active: Vec<usize> = (0..self.accepted.len())
+            .filter(|k| self.active[*k])
+            .collect();
+        if active.len() < 2 {
+            return false;
+        }
+        let state_ctx = self.state_context();
+        let ones = vec![1.0; self.y.len()];
+        // Judged in both views of the selection: a fast correction that slow correlated noise
+        // hides in the data as they are still counts where the high-pass shows it.
+        let y_high = select::highpass(self.y, self.highpass_window);
+        let cv = |skip: Option<usize>, high: bool| -> f64 {
+            let mut columns = vec![ones.clone()];
+            columns.extend(self.columns(&state_ctx, skip).into_iter().map(|c| {
+                if high {
+                    select::highpass(&c, self.highpass_window)
+                } else {
+                    c
+                }
+            }));
+            let refs: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
+            held_out_sse(&refs, if high { &y_high } else { self.y }, self.blocks)
+        };
+        let cost_in = |k: usize, high: bool, all: f64| -> f64 {
+            let without = cv(Some(k), high);
+            if without > 0.0 {
+                (without - all) / without
+            } else {
+                0.0
+            }
+        };
+        let (all_raw, all_high) = (cv(None, false), cv(None, true));
+        let weakest = active
+            .iter()
+            .map(|&k| {
+                (
+                    k,
+                    cost_in(k, false, all_raw).max(cost_in(k, true, all_high)),
+                )
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match weakest {
+            Some((k, cost)) if cost < self.min_relative_gain => {
+                self.active[k] = false;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The member of `family` (its grid and the current parameters `current`) that predicts
+    /// the held-out blocks best with `others` (the intercept first) in the model, among those
+    /// the family's gain limits admit. The stepwise step chose the member before the other
+    /// corrections and the corrected state were known; with them, another lag shape may fit.
+    fn reselect(
+        &self,
+        family: usize,
+        current: &[f64],
+        others: &[Vec<f64>],
+        ctx: &Context,
+    ) -> Vec<f64> {
+        let f = &self.families[family];
+        let mut grid: Vec<Vec<f64>> = f.grid.clone();
+        grid.push(current.to_vec());
+        let scored = series::parallel_map(&grid, |theta| {
+            let columns = build(f, ctx, theta);
+            if columns.is_empty() {
+                return f64::INFINITY;
+            }
+            let mut standard = Vec::with_capacity(columns.len());
+            let mut scales = Vec::with_capacity(columns.len());
+            for c in &columns {
+                let (z, scale) = select::standardise(&bin_means(c, self.bins));
+                standard.push(z);
+                scales.push(scale.unwrap_or(0.0));
+            }
+            let mut design: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
+            design.extend(standard.iter().map(|c| c.as_slice()));
+            let gram = ModelGram::new(&design, self.blocks);
+            let zty: Vec<Vec<f64>> = design.iter().map(|c| self.blocks.dots(c, self.y)).collect();
+            let yty = self.blocks.dots(self.y, self.y);
+            let stats = TargetStats {
+                zty: zty.iter().map(|v| v.as_slice()).collect(),
+                yty: &yty,
+            };
+            if let Some(limit) = f.sign {
+                let Some(beta) = gram.full_fit(&stats, self.blocks) else {
+                    return f64::INFINITY;
+                };
+                let range = f.driver_columns(theta, limit.driver);
+                let limited: Vec<usize> = range.filter(|k| *k < columns.len()).collect();
+                let gain: f64 = limited
+                    .iter()
+                    .filter(|k| scales[**k] > 0.0)
+                    .map(|k| beta[others.len() + k] / scales[*k])
+                    .sum();
+                if !limited.is_empty() && !limit.admits(gain) {
+                    return f64::INFINITY;
+                }
+            }
+            gram.cv_sse(&stats, self.blocks).unwrap_or(f64::INFINITY)
+        });
+        grid.into_iter()
+            .zip(scored)
+            .filter(|(_, e)| e.is_finite())
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or_else(|| current.to_vec(), |(theta, _)| theta)
+    }
+
+    /// Iterates the state correction to its fixed point: fit every accepted correction, take
+    /// the physical ones' sum at full rate as the state, rebuild, repeat. Stops when the state
+    /// moves by less than 0.1 % of the residual's spread, and keeps the last state that did
+    /// not make the in-sample fit worse (a fixed point that runs away is not used).
+    fn settle_state(&mut self) {
+        let spread = series::std_dev(self.y).max(f64::MIN_POSITIVE);
+        let ones = vec![1.0; self.y.len()];
+        let mut previous_sse = f64::INFINITY;
+        for _ in 0..STATE_ITERATIONS {
+            let state_ctx = self.state_context();
+            // Full-rate columns, their binned standardised form, and the joint fit.
+            let full: Vec<(usize, Vec<Vec<f64>>)> = self
+                .accepted
+                .iter()
+                .zip(&self.active)
+                .filter(|(_, a)| **a)
+                .map(|((family, theta), _)| {
+                    let f = &self.families[*family];
+                    let ctx = if f.state { &state_ctx } else { self.ctx };
+                    (*family, build(f, ctx, theta))
+                })
+                .collect();
+            let mut design: Vec<Vec<f64>> = vec![ones.clone()];
+            let mut scales = Vec::new();
+            for (_, columns) in &full {
+                for c in columns {
+                    let (standard, scale) = select::standardise(&bin_means(c, self.bins));
+                    design.push(standard);
+                    scales.push(scale.unwrap_or(0.0));
+                }
+            }
+            let refs: Vec<&[f64]> = design.iter().map(|c| c.as_slice()).collect();
+            let Some((beta, sse)) = least_squares(&refs, self.y) else {
+                return;
+            };
+            if sse > previous_sse * (1.0 + 1e-9) {
+                return;
+            }
+            previous_sse = sse;
+            // The physical state: every correction but calibration and measurement effects.
+            let n = self.ctx.time.len();
+            let mut state = vec![0.0; n];
+            let mut index = 0;
+            for (family, columns) in &full {
+                let physical = match self.families[*family].kind {
+                    Kind::Physics(p) => {
+                        !matches!(p, Physics::SignalDelay | Physics::SensorOffsetDrift)
+                    }
+                    Kind::CalibrationGain => false,
+                };
+                for c in columns {
+                    let scale = scales[index];
+                    let b = beta[1 + index];
+                    index += 1;
+                    if !physical || scale <= 0.0 {
+                        continue;
+                    }
+                    // Uncentred: a correction is zero where its driver is (the part at rest
+                    // at room temperature), and its mean level is part of the state.
+                    let raw = b / scale;
+                    for (s, v) in state.iter_mut().zip(c) {
+                        *s += raw * v;
+                    }
+                }
+            }
+            if state.iter().any(|v| !v.is_finite()) {
+                return;
+            }
+            let moved = match &self.state {
+                Some(old) => old
+                    .iter()
+                    .zip(&state)
+                    .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs())),
+                None => state.iter().fold(0.0_f64, |m, v| m.max(v.abs())),
+            };
+            self.state = Some(state);
+            if moved < 1e-3 * spread {
+                return;
+            }
+        }
+    }
+}
+
+/// Refines a member's first nonlinear parameter (τ on a log scale, a delay on a linear one)
+/// between its grid neighbours by a golden-section search of the in-sample error on top of
+/// `base`; the grid value stays when the search finds nothing better.
+fn refine_member(
+    family: &Family,
+    theta: &[f64],
+    base: &[Vec<f64>],
+    ctx: &Context,
+    bins: &[std::ops::Range<usize>],
+    y: &[f64],
+) -> Vec<f64> {
+    let Some(refine) = family.refine else {
+        return theta.to_vec();
+    };
+    let current = theta[0];
+    // A nested member (τ = 0: no lag at all) has nothing to refine.
+    if refine.log && current == 0.0 {
+        return theta.to_vec();
+    }
+    // The search runs between the nearest grid values below and above the current one among
+    // members that share the other parameters (the current value may lie between grid points
+    // after an earlier refinement).
+    let values: Vec<f64> = family
+        .grid
+        .iter()
+        .filter(|t| t[1..] == theta[1..] && t[0].signum() == current.signum())
+        .map(|t| t[0])
+        .collect();
+    let lower = values
+        .iter()
+        .copied()
+        .filter(|v| *v < current)
+        .max_by(f64::total_cmp)
+        .unwrap_or(current);
+    let upper = values
+        .iter()
+        .copied()
+        .filter(|v| *v > current)
+        .min_by(f64::total_cmp)
+        .unwrap_or(current);
+    if lower == upper {
+        return theta.to_vec();
+    }
+    let sse_at = |value: f64| -> f64 {
+        let mut candidate = theta.to_vec();
+        candidate[0] = value;
+        let own = binned_standardised(family, ctx, &candidate, bins);
+        let mut columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
+        columns.extend(own.iter().map(|c| c.as_slice()));
+        least_squares(&columns, y).map_or(f64::INFINITY, |(_, sse)| sse)
+    };
+    // Time constants are searched on a log scale, delays on a linear one.
+    let to = |v: f64| if refine.log { v.abs().ln() } else { v };
+    let from = |u: f64| if refine.log { u.exp() } else { u };
+    let sign = if refine.log { current.signum() } else { 1.0 };
+    let (mut a, mut b) = (to(lower), to(upper));
+    let golden = 0.5 * (5.0_f64.sqrt() - 1.0);
+    let mut c = b - golden * (b - a);
+    let mut d = a + golden * (b - a);
+    let (mut fc, mut fd) = (sse_at(sign * from(c)), sse_at(sign * from(d)));
+    for _ in 0..14 {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - golden * (b - a);
+            fc = sse_at(sign * from(c));
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + golden * (b - a);
+            fd = sse_at(sign * from(d));
+        }
+    }
+    let best = sign * from(if fc < fd { c } else { d });
+    let mut out = theta.to_vec();
+    if sse_at(best) <= sse_at(current) {
+        out[0] = best;
+    }
+    out
+}
+
+/// The parameters of a report's findings by physics id (a convenience for tests and the HMI).
+pub fn parameters_by_physics(
+    report: &DiscrepancyReport,
+) -> BTreeMap<String, BTreeMap<String, f64>> {
+    report
+        .findings
+        .iter()
+        .map(|f| (f.physics.clone(), f.parameters.clone()))
+        .collect()
+}

@@ -1,0 +1,290 @@
+//! The report: DESIGN.md's JSON contract (`target, rows, verdict, baseline, improved,
+//! mismatch_regions, findings`) plus calibration, agreement regions, noise floor, alignment and
+//! method, a readable text rendering, and the plot-ready series the HMI draws.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use super::localise::Region;
+
+/// The overall answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// At least one missing physics was found.
+    MissingPhysics,
+    /// Nothing significant beyond calibration: the simulation agrees with the real recording
+    /// within its noise.
+    Consistent,
+}
+
+/// R² and RMSE of a prediction of the real target.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FitQuality {
+    /// Coefficient of determination against the real target's own variance.
+    pub r2: f64,
+    /// Root-mean-square error, target unit.
+    pub rmse: f64,
+}
+
+/// A missing physics found, with its fitted correction.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Finding {
+    /// The vocabulary id.
+    pub physics: String,
+    /// A sentence with the fitted parameters in physical units.
+    pub explanation: String,
+    /// The fitted parameters (names carry their units: `tau_min`, `delay_s`, `gain_per_K`…).
+    pub parameters: BTreeMap<String, f64>,
+    /// The signals the correction is built from.
+    pub signals: Vec<String>,
+    /// Out-of-sample (time-blocked) R² gained by adding this correction.
+    pub delta_r2: f64,
+    /// Surrogate p-value: the share of phase-randomised residuals for which the best
+    /// correction of the whole library did at least as well (resolution 1/(surrogates + 1)).
+    pub p_value: f64,
+    /// Other physics that fit these data about as well (the data cannot tell them apart).
+    pub indistinguishable_from: Vec<String>,
+    /// The next best other physics at this step, with their gains relative to this one's.
+    pub alternatives: Vec<Alternative>,
+}
+
+/// A competing explanation at a step.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Alternative {
+    /// Its id (`calibration` for a gain miscalibration).
+    pub physics: String,
+    /// Its held-out gain as a fraction of the winner's.
+    pub relative_gain: f64,
+}
+
+/// How the simulation had to be calibrated before any physics (never reported as physics).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Calibration {
+    /// real ≈ offset + gain × sim (+ corrections); the offset is at the recording's start.
+    pub offset: f64,
+    /// The gain (1 when no gain miscalibration was significant).
+    pub gain: f64,
+    /// Whether a gain miscalibration was significant and absorbed.
+    pub gain_absorbed: bool,
+    /// A sentence.
+    pub explanation: String,
+}
+
+/// The noise left once every correction is in, measured on held-out blocks.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct NoiseFloor {
+    /// RMS, target unit.
+    pub rms: f64,
+    /// Integrated autocorrelation time, s (white noise: one sample interval).
+    pub correlation_time_s: f64,
+    /// Window of the localisation's power estimates, s.
+    pub window_s: f64,
+}
+
+/// How the recordings were joined.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Alignment {
+    /// True when the simulation was interpolated onto the real recording's time grid.
+    pub resampled: bool,
+    /// A sentence.
+    pub note: String,
+    /// First aligned time, s.
+    pub start_s: f64,
+    /// Last aligned time, s.
+    pub end_s: f64,
+}
+
+/// A physics that could not be tried, and why.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NotTested {
+    /// The id.
+    pub physics: String,
+    /// Why not.
+    pub reason: String,
+}
+
+/// How the analysis was run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Method {
+    /// Time-blocked cross-validation folds.
+    pub folds: usize,
+    /// Surrogates per selection step.
+    pub surrogates: usize,
+    /// Significance level.
+    pub alpha: f64,
+    /// Rows the selection ran on (bin means of the aligned rows when there are more).
+    pub selection_rows: usize,
+    /// Candidate corrections (family members) in the library for this target.
+    pub candidates: usize,
+    /// Every selection step: the best candidate, its held-out gain and surrogate p-value.
+    pub steps: Vec<StepTrace>,
+}
+
+/// One step of the stepwise selection, accepted or not.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct StepTrace {
+    /// The best candidate's id (`calibration` for a gain).
+    pub physics: String,
+    /// Its held-out gain as a share of the held-out error before the step.
+    pub relative_gain: f64,
+    /// Its surrogate p-value.
+    pub p_value: f64,
+    /// Its upper-tail probability under a Gumbel law fitted to the surrogates' maxima.
+    pub tail_p: f64,
+    /// Whether it entered the model.
+    pub accepted: bool,
+    /// Whether it was withdrawn again when a later correction, refitted jointly with it,
+    /// explained what it had taken (backward elimination).
+    pub withdrawn: bool,
+}
+
+/// The whole analysis.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct DiscrepancyReport {
+    /// The target column.
+    pub target: String,
+    /// Aligned rows analysed.
+    pub rows: usize,
+    /// `missing_physics` or `consistent`.
+    pub verdict: Verdict,
+    /// The simulation as it is against the real target.
+    pub baseline: FitQuality,
+    /// Calibrated simulation plus every correction, measured on held-out time blocks.
+    pub improved: FitQuality,
+    /// Calibrated simulation only (offset, and gain when absorbed), held-out.
+    pub calibrated: FitQuality,
+    /// Where the simulation misses.
+    pub mismatch_regions: Vec<Region>,
+    /// Where the simulation is right.
+    pub agreement_regions: Vec<Region>,
+    /// Missing physics, strongest first.
+    pub findings: Vec<Finding>,
+    /// Calibration absorbed before physics.
+    pub calibration: Calibration,
+    /// What is left.
+    pub noise_floor: NoiseFloor,
+    /// How the recordings were joined.
+    pub alignment: Alignment,
+    /// Physics the data could not test.
+    pub not_tested: Vec<NotTested>,
+    /// How the analysis was run.
+    pub method: Method,
+    /// Plot-ready series (written separately, see [`PlotData`]).
+    #[serde(skip)]
+    pub plot: PlotData,
+}
+
+/// Series for the model-lab panel: everything on one (decimated) time axis.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct PlotData {
+    /// The target.
+    pub target: String,
+    /// Time, s.
+    pub time_s: Vec<f64>,
+    /// The real target.
+    pub real: Vec<f64>,
+    /// The simulated target.
+    pub sim: Vec<f64>,
+    /// Calibrated simulation plus the corrections (fitted on all rows).
+    pub corrected: Vec<f64>,
+    /// real − sim.
+    pub residual_before: Vec<f64>,
+    /// real − corrected, each row predicted from the other time blocks.
+    pub residual_after: Vec<f64>,
+    /// The mismatch regions.
+    pub regions: Vec<Region>,
+}
+
+impl DiscrepancyReport {
+    /// The report as a person reads it.
+    pub fn summary(&self) -> String {
+        let mut s = String::new();
+        let unit = crate::signal::channel::Channel::unit_of(&self.target).unwrap_or("");
+        let _ = writeln!(
+            s,
+            "Discrepancy of {} ({} rows): {}",
+            self.target,
+            self.rows,
+            match self.verdict {
+                Verdict::MissingPhysics => "the simulation is missing physics",
+                Verdict::Consistent => "consistent — no missing physics beyond calibration",
+            }
+        );
+        let _ = writeln!(s, "  {}", self.alignment.note);
+        let _ = writeln!(
+            s,
+            "  before: R² {:.4}, RMSE {:.4} {unit}   calibrated: R² {:.4}, RMSE {:.4}   after (held-out): R² {:.4}, RMSE {:.4} {unit}",
+            self.baseline.r2,
+            self.baseline.rmse,
+            self.calibrated.r2,
+            self.calibrated.rmse,
+            self.improved.r2,
+            self.improved.rmse
+        );
+        let _ = writeln!(s, "  {}", self.calibration.explanation);
+        let _ = writeln!(
+            s,
+            "  noise floor: RMS {:.4} {unit}, correlation time {:.0} s",
+            self.noise_floor.rms, self.noise_floor.correlation_time_s
+        );
+        if self.findings.is_empty() {
+            let _ = writeln!(s, "\nNo missing physics found.");
+        } else {
+            let _ = writeln!(s, "\nFindings, strongest first:");
+        }
+        for (i, f) in self.findings.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "  {}. {} (ΔR² {:+.4}, p = {:.3})\n     {}",
+                i + 1,
+                f.physics,
+                f.delta_r2,
+                f.p_value,
+                f.explanation
+            );
+            let _ = writeln!(s, "     signals: {}", f.signals.join(", "));
+            if !f.indistinguishable_from.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "     the data cannot tell this apart from: {}",
+                    f.indistinguishable_from.join(", ")
+                );
+            }
+        }
+        let describe = |r: &Region| {
+            let conditions: Vec<String> = r
+                .conditions
+                .iter()
+                .map(|(k, v)| format!("{k} {v:.2}"))
+                .collect();
+            format!(
+                "{:>9.0}–{:<9.0} s  mean {:+.4}  rms {:.4}   {}",
+                r.start_s,
+                r.end_s,
+                r.mean_residual,
+                r.rms_residual,
+                conditions.join(", ")
+            )
+        };
+        if !self.mismatch_regions.is_empty() {
+            let _ = writeln!(s, "\nWhere the simulation misses:");
+            for r in &self.mismatch_regions {
+                let _ = writeln!(s, "  {}", describe(r));
+            }
+        }
+        if !self.agreement_regions.is_empty() {
+            let _ = writeln!(s, "\nWhere the simulation is right:");
+            for r in self.agreement_regions.iter().take(10) {
+                let _ = writeln!(s, "  {}", describe(r));
+            }
+            if self.agreement_regions.len() > 10 {
+                let _ = writeln!(s, "  … and {} more", self.agreement_regions.len() - 10);
+            }
+        }
+        for t in &self.not_tested {
+            let _ = writeln!(s, "  not tested: {} ({})", t.physics, t.reason);
+        }
+        s
+    }
+}

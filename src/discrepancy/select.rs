@@ -1,0 +1,638 @@
+//! Selection that does not fool itself: stepwise, each step scored by time-blocked
+//! cross-validated gain and tested against a surrogate null that keeps the residual's
+//! autocorrelation (phase-randomised residuals), taking the largest gain over the whole library
+//! for every surrogate, so choosing the best of many candidates is paid for. Two views of the
+//! data (as they are, and high-passed) are combined by min-P so that slow correlated noise
+//! cannot hide fast effects; among candidates the held-out blocks cannot tell apart, the
+//! simplest is taken and the others are reported.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+
+use super::Options;
+use super::cv::{Blocks, ModelGram, TargetStats, least_squares};
+use super::library::{Family, Kind};
+use super::series::{SurrogateSpectrum, mean, moving_average, parallel_map, std_dev};
+
+/// One candidate member: a family at one point of its parameter grid.
+#[derive(Debug, Clone)]
+pub struct Member {
+    /// Index of the family.
+    pub family: usize,
+    /// Its nonlinear parameters.
+    pub theta: Vec<f64>,
+    /// Its columns in the store.
+    pub columns: std::ops::Range<usize>,
+}
+
+/// Standardised (zero mean, unit spread) binned columns of every member.
+#[derive(Debug, Default)]
+pub struct Store {
+    /// The columns.
+    pub columns: Vec<Vec<f64>>,
+    /// Each column's standard deviation before standardising (raw coefficient = β / scale).
+    pub scale: Vec<f64>,
+    /// False for columns that do not vary.
+    pub usable: Vec<bool>,
+}
+
+impl Store {
+    /// Adds columns (already binned), standardising them; returns their range.
+    pub fn push(&mut self, columns: Vec<Vec<f64>>) -> std::ops::Range<usize> {
+        let start = self.columns.len();
+        for column in columns {
+            let (standard, scale) = standardise(&column);
+            self.columns.push(standard);
+            self.scale.push(scale.unwrap_or(1.0));
+            self.usable.push(scale.is_some());
+        }
+        start..self.columns.len()
+    }
+}
+
+/// Zero mean, unit standard deviation, and the standard deviation; `None` when the column is
+/// (numerically) constant.
+pub fn standardise(column: &[f64]) -> (Vec<f64>, Option<f64>) {
+    let m = mean(column);
+    let s = std_dev(column);
+    let scale_reference = column.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    if !s.is_finite() || s <= 1e-12 * scale_reference.max(1e-300) {
+        return (vec![0.0; column.len()], None);
+    }
+    (column.iter().map(|v| (v - m) / s).collect(), Some(s))
+}
+
+/// The outcome of one stepwise step.
+#[derive(Debug, Clone)]
+pub struct Step {
+    /// The winning member.
+    pub member: usize,
+    /// Its cross-validated gain: held-out SSE before minus after.
+    pub gain: f64,
+    /// Held-out SSE before the step.
+    pub sse_before: f64,
+    /// Surrogate p-value of the gain (max over the library).
+    pub p_value: f64,
+    /// Upper-tail probability of the gain under a Gumbel law fitted to the surrogates' maxima.
+    pub tail_p: f64,
+    /// Accepted (significant and large enough).
+    pub accepted: bool,
+    /// Best members of other kinds, with their gains (strongest first).
+    pub runners_up: Vec<(usize, f64)>,
+    /// Members of other kinds whose held-out fit the data cannot tell apart from the winner's.
+    pub indistinguishable: Vec<usize>,
+}
+
+/// The binned problem the selection works on.
+pub struct Problem<'a> {
+    /// Binned target residual (real − sim).
+    pub y: &'a [f64],
+    /// The views the candidates are scored in.
+    pub views: &'a [View],
+    /// Blocks and folds.
+    pub blocks: &'a Blocks,
+    /// Candidate members.
+    pub members: &'a [Member],
+    /// Their families.
+    pub families: &'a [Family],
+    /// Their columns.
+    pub store: &'a Store,
+}
+
+/// A Gumbel distribution (the limit law of maxima), fitted by moments.
+#[derive(Debug, Clone, Copy)]
+struct Gumbel {
+    location: f64,
+    scale: f64,
+}
+
+impl Gumbel {
+    /// Fits the maxima; `None` with fewer than ten or without spread.
+    fn fit(maxima: &[f64]) -> Option<Gumbel> {
+        if maxima.len() < 10 {
+            return None;
+        }
+        let scale = std_dev(maxima) * 6.0_f64.sqrt() / std::f64::consts::PI;
+        if !(scale.is_finite() && scale > 0.0) {
+            return None;
+        }
+        Some(Gumbel {
+            location: mean(maxima) - 0.577_215_664_901_532_9 * scale,
+            scale,
+        })
+    }
+
+    /// P(max ≥ x).
+    fn survival(&self, x: f64) -> f64 {
+        let z = (x - self.location) / self.scale;
+        // 1 − exp(−e^(−z)), accurate far in the tail.
+        -(-(-z).exp()).exp_m1()
+    }
+}
+
+/// One way of looking at the data: as it is, or high-passed.
+///
+/// Strongly autocorrelated noise is slow; a slow candidate (a long lag, a drift) fits a share
+/// of it by chance in every surrogate, which raises the null and hides fast effects
+/// (direction-dependent friction, a profile along the stroke) that the noise hardly touches.
+/// The high-passed view (each series minus its moving average) removes the slow noise and the
+/// slow candidates with it, so fast effects are judged against fast noise. Both views are
+/// scored; each view's gains are scaled by the median of its own null maxima so the two are
+/// comparable, and the null takes the maximum over views and members alike.
+#[derive(Debug)]
+pub struct View {
+    /// Moving-average window of the high-pass, bins (`None`: the data as they are).
+    pub highpass: Option<usize>,
+    /// The store's columns in this view.
+    pub columns: Vec<Vec<f64>>,
+    /// Whether each column still varies in this view.
+    pub usable: Vec<bool>,
+    /// The same columns as one rows × columns matrix, for the surrogates' products.
+    matrix: Mat<f64>,
+}
+
+impl View {
+    /// The data as they are.
+    pub fn raw(store: &Store) -> View {
+        View {
+            highpass: None,
+            matrix: as_matrix(&store.columns),
+            columns: store.columns.clone(),
+            usable: store.usable.clone(),
+        }
+    }
+
+    /// High-passed with a moving average of `window` bins.
+    pub fn highpassed(store: &Store, window: usize) -> View {
+        let mut columns = Vec::with_capacity(store.columns.len());
+        let mut usable = Vec::with_capacity(store.columns.len());
+        for (c, ok) in store.columns.iter().zip(&store.usable) {
+            let filtered = highpass(c, window);
+            // A column keeping under 1 % of its spread is slow: it has no say in this view.
+            let kept = std_dev(&filtered) > 0.01 * std_dev(c).max(1e-300);
+            usable.push(*ok && kept);
+            columns.push(filtered);
+        }
+        View {
+            highpass: Some(window),
+            matrix: as_matrix(&columns),
+            columns,
+            usable,
+        }
+    }
+
+    /// A series in this view.
+    pub fn transform(&self, values: &[f64]) -> Vec<f64> {
+        match self.highpass {
+            Some(window) => highpass(values, window),
+            None => values.to_vec(),
+        }
+    }
+}
+
+fn as_matrix(columns: &[Vec<f64>]) -> Mat<f64> {
+    let rows = columns.first().map_or(0, Vec::len);
+    Mat::from_fn(rows, columns.len(), |i, c| columns[c][i])
+}
+
+/// `values` minus their centred moving average over `window` samples.
+pub fn highpass(values: &[f64], window: usize) -> Vec<f64> {
+    let smooth = moving_average(values, window);
+    values.iter().zip(&smooth).map(|(v, s)| v - s).collect()
+}
+
+/// Held-out SSE of every member on top of the base (`None`: unusable or of the wrong sign),
+/// and the base's own held-out SSE.
+fn score_all(
+    problem: &Problem<'_>,
+    grams: &[Option<ModelGram>],
+    base_gram: &ModelGram,
+    base_dots: &[Vec<f64>],
+    column_dots: &[Vec<f64>],
+    yty: &[f64],
+) -> (Option<f64>, Vec<Option<f64>>) {
+    let blocks = problem.blocks;
+    let base_zty: Vec<&[f64]> = base_dots.iter().map(|d| d.as_slice()).collect();
+    let sse0 = base_gram.cv_sse(
+        &TargetStats {
+            zty: base_zty.clone(),
+            yty,
+        },
+        blocks,
+    );
+    let scored = problem
+        .members
+        .iter()
+        .zip(grams)
+        .map(|(member, gram)| {
+            let gram = gram.as_ref()?;
+            let mut zty = base_zty.clone();
+            zty.extend(member.columns.clone().map(|c| column_dots[c].as_slice()));
+            let stats = TargetStats { zty, yty };
+            let family = &problem.families[member.family];
+            if let Some(limit) = family.sign {
+                let beta = gram.full_fit(&stats, blocks)?;
+                // A member without the limited driver's columns (a nested simpler form) has
+                // nothing to limit.
+                let gain: f64 = family
+                    .driver_columns(&member.theta, limit.driver)
+                    .filter(|k| *k < member.columns.len())
+                    .map(|k| {
+                        let c = member.columns.start + k;
+                        beta[base_dots.len() + k] / problem.store.scale[c]
+                    })
+                    .sum();
+                let limited = family
+                    .driver_columns(&member.theta, limit.driver)
+                    .any(|k| k < member.columns.len());
+                if limited && !limit.admits(gain) {
+                    return None;
+                }
+            }
+            gram.cv_sse(&stats, blocks)
+        })
+        .collect();
+    (sse0, scored)
+}
+
+/// Refines an accepted member against the current base and returns its final (binned,
+/// standardised) columns; called by [`stepwise`] on every acceptance.
+pub type Accept<'a> = dyn FnMut(usize, &[Vec<f64>]) -> Vec<Vec<f64>> + 'a;
+
+/// The y-independent part of one view at one step.
+struct ViewStep<'v> {
+    view: &'v View,
+    base: Vec<Vec<f64>>,
+    base_gram: ModelGram,
+    grams: Vec<Option<ModelGram>>,
+}
+
+impl ViewStep<'_> {
+    /// Relative held-out gains of every member for `y` (raw binned), and the base SSE.
+    fn gains(&self, problem: &Problem<'_>, y: &[f64]) -> Option<(f64, Vec<Option<f64>>)> {
+        let blocks = problem.blocks;
+        let y = self.view.transform(y);
+        let base_dots: Vec<Vec<f64>> = self.base.iter().map(|c| blocks.dots(c, &y)).collect();
+        let column_dots: Vec<Vec<f64>> = self
+            .view
+            .columns
+            .iter()
+            .map(|c| blocks.dots(c, &y))
+            .collect();
+        let yty = blocks.dots(&y, &y);
+        self.gains_from(problem, &base_dots, &column_dots, &yty)
+    }
+
+    /// The largest relative gain of any member for each of many targets `ys` (raw binned),
+    /// computing every column's products with every target as one matrix product per block.
+    fn max_gains(&self, problem: &Problem<'_>, ys: &[Vec<f64>]) -> Vec<f64> {
+        let blocks = problem.blocks;
+        let transformed: Vec<Vec<f64>> = ys.iter().map(|y| self.view.transform(y)).collect();
+        let targets = as_matrix(&transformed);
+        let columns = self.view.columns.len();
+        // products[b] is columns × targets for block b.
+        let products: Vec<Mat<f64>> = blocks
+            .ranges
+            .iter()
+            .map(|r| {
+                let mut out = Mat::<f64>::zeros(columns, ys.len());
+                matmul(
+                    out.as_mut(),
+                    Accum::Replace,
+                    self.view
+                        .matrix
+                        .as_ref()
+                        .subrows(r.start, r.len())
+                        .transpose(),
+                    targets.as_ref().subrows(r.start, r.len()),
+                    1.0,
+                    Par::Seq,
+                );
+                out
+            })
+            .collect();
+        transformed
+            .iter()
+            .enumerate()
+            .map(|(j, y)| {
+                let base_dots: Vec<Vec<f64>> =
+                    self.base.iter().map(|c| blocks.dots(c, y)).collect();
+                let column_dots: Vec<Vec<f64>> = (0..columns)
+                    .map(|c| products.iter().map(|p| p[(c, j)]).collect())
+                    .collect();
+                let yty = blocks.dots(y, y);
+                self.gains_from(problem, &base_dots, &column_dots, &yty)
+                    .map_or(f64::NEG_INFINITY, |(_, g)| {
+                        g.iter()
+                            .flatten()
+                            .copied()
+                            .fold(f64::NEG_INFINITY, f64::max)
+                    })
+            })
+            .collect()
+    }
+
+    fn gains_from(
+        &self,
+        problem: &Problem<'_>,
+        base_dots: &[Vec<f64>],
+        column_dots: &[Vec<f64>],
+        yty: &[f64],
+    ) -> Option<(f64, Vec<Option<f64>>)> {
+        let (sse0, scored) = score_all(
+            problem,
+            &self.grams,
+            &self.base_gram,
+            base_dots,
+            column_dots,
+            yty,
+        );
+        let sse0 = sse0.filter(|s| *s > 0.0)?;
+        Some((
+            sse0,
+            scored
+                .iter()
+                .map(|s| s.map(|e| (sse0 - e) / sse0))
+                .collect(),
+        ))
+    }
+}
+
+/// Runs the stepwise selection: the intercept is always in the model (the offset is absorbed
+/// first); each step adds the best member of a kind not chosen yet if it is significant.
+pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_>) -> Vec<Step> {
+    let blocks = problem.blocks;
+    let n = problem.y.len();
+    let mut rng = StdRng::seed_from_u64(options.seed);
+    let mut base: Vec<Vec<f64>> = vec![vec![1.0; n]];
+    let mut chosen_kinds: Vec<Kind> = Vec::new();
+    let mut steps = Vec::new();
+    for _ in 0..options.max_steps {
+        let view_indices: Vec<usize> = (0..problem.views.len()).collect();
+        let view_steps: Vec<ViewStep<'_>> = parallel_map(&view_indices, |&v| {
+            let view = &problem.views[v];
+            let view_base: Vec<Vec<f64>> = base
+                .iter()
+                .map(|c| view.transform(c))
+                .filter(|c| std_dev(c) > 1e-9 || view.highpass.is_none())
+                .collect();
+            let base_columns: Vec<&[f64]> = view_base.iter().map(|c| c.as_slice()).collect();
+            let grams = problem
+                .members
+                .iter()
+                .map(|member| {
+                    let kind = problem.families[member.family].kind;
+                    let usable = member.columns.clone().all(|c| view.usable[c]);
+                    if chosen_kinds.contains(&kind) || !usable || member.columns.is_empty() {
+                        return None;
+                    }
+                    let mut columns = base_columns.clone();
+                    columns.extend(member.columns.clone().map(|c| view.columns[c].as_slice()));
+                    Some(ModelGram::new(&columns, blocks))
+                })
+                .collect();
+            ViewStep {
+                view,
+                base_gram: ModelGram::new(&base_columns, blocks),
+                base: view_base,
+                grams,
+            }
+        });
+        let observed: Vec<Option<(f64, Vec<Option<f64>>)>> = view_steps
+            .iter()
+            .map(|v| v.gains(problem, problem.y))
+            .collect();
+        if observed.iter().all(Option::is_none) {
+            break;
+        }
+        // Surrogate null: the residual of the current base model, phase-randomised.
+        let base_columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
+        let (beta, _) = least_squares(&base_columns, problem.y)
+            .unwrap_or_else(|| (vec![0.0; base_columns.len()], 0.0));
+        let fitted: Vec<f64> = (0..n)
+            .map(|i| base_columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum())
+            .collect();
+        let residual: Vec<f64> = problem.y.iter().zip(&fitted).map(|(y, f)| y - f).collect();
+        let spectrum = SurrogateSpectrum::new(&residual);
+        // null[j][v] = the largest relative gain of any member in view v for surrogate j.
+        let surrogate_targets: Vec<Vec<f64>> = (0..options.surrogates)
+            .map(|_| {
+                let noise = spectrum.draw(&mut rng);
+                fitted.iter().zip(&noise).map(|(f, e)| f + e).collect()
+            })
+            .collect();
+        let per_view: Vec<Vec<f64>> =
+            parallel_map(&view_steps, |v| v.max_gains(problem, &surrogate_targets));
+        let null: Vec<Vec<f64>> = (0..surrogate_targets.len())
+            .map(|j| per_view.iter().map(|v| v[j]).collect())
+            .collect();
+        // Min-P over the views: each view's best gain gets a p-value against that view's
+        // null maxima, and the smallest is compared with the smallest of every surrogate, so
+        // looking twice is paid for. Ties go to the data as they are (view 0).
+        let surrogates = null.len().max(1) as f64;
+        let p_in_view = |v: usize, value: f64| -> f64 {
+            null.iter().filter(|row| row[v] >= value).count() as f64 / surrogates
+        };
+        let mut best: Option<(usize, usize, f64)> = None; // (member, view, p)
+        for (v, outcome) in observed.iter().enumerate() {
+            let Some((_, gains)) = outcome else { continue };
+            let Some((m, g)) = gains
+                .iter()
+                .enumerate()
+                .filter_map(|(m, g)| g.map(|g| (m, g)))
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+            else {
+                continue;
+            };
+            let p = p_in_view(v, g);
+            if best.is_none_or(|(_, _, b)| p < b) {
+                best = Some((m, v, p));
+            }
+        }
+        let Some((winner, best_view, best_p)) = best else {
+            break;
+        };
+        let exceed = null
+            .iter()
+            .filter(|row| {
+                (0..row.len())
+                    .map(|v| p_in_view(v, row[v]))
+                    .fold(f64::INFINITY, f64::min)
+                    <= best_p
+            })
+            .count();
+        let p_value = (1 + exceed) as f64 / (options.surrogates + 1) as f64;
+        // Beating every surrogate happens by chance once in (surrogates + 1) steps. A finding
+        // must also stand clear of the surrogates' maxima: the upper tail of a Gumbel
+        // (extreme-value) law fitted to them must put it beyond `options.tail_alpha` — unless
+        // it explains most of the held-out error, which noise that its own surrogates cannot
+        // match does not do.
+        let winner_gain = observed[best_view]
+            .as_ref()
+            .and_then(|(_, g)| g[winner])
+            .unwrap_or(0.0);
+        let tail_p = Gumbel::fit(
+            &null
+                .iter()
+                .map(|row| row[best_view])
+                .filter(|g| g.is_finite())
+                .collect::<Vec<_>>(),
+        )
+        .map_or(p_value, |tail| tail.survival(winner_gain));
+        let clear_of_null = tail_p <= options.tail_alpha || winner_gain >= options.dominant_gain;
+        // Within the winning kind, the member (its τ, its delay) is the one that predicts the
+        // data as they are best, since that is the model reported; the view only decided
+        // whether the kind is real.
+        let winning_kind = problem.families[problem.members[winner].family].kind;
+        let best = match &observed[0] {
+            Some((_, raw)) => raw
+                .iter()
+                .enumerate()
+                .filter(|(m, g)| {
+                    g.is_some_and(|g| g > 0.0)
+                        && problem.families[problem.members[*m].family].kind == winning_kind
+                })
+                .max_by(|a, b| a.1.unwrap_or(0.0).total_cmp(&b.1.unwrap_or(0.0)))
+                .map_or(winner, |(m, _)| m),
+            None => winner,
+        };
+        let Some((sse0, gains)) = &observed[best_view] else {
+            break;
+        };
+        let relative = gains[winner].unwrap_or(0.0);
+        let accepted =
+            p_value <= options.alpha && relative >= options.min_relative_gain && clear_of_null;
+
+        // The best member of every other kind in the winning view, for the "could it be
+        // something else" check.
+        let best_kind = problem.families[problem.members[best].family].kind;
+        let mut runners: Vec<(usize, f64)> = Vec::new();
+        for (i, g) in gains.iter().enumerate() {
+            let Some(g) = *g else { continue };
+            let kind = problem.families[problem.members[i].family].kind;
+            if kind == best_kind {
+                continue;
+            }
+            match runners
+                .iter_mut()
+                .find(|(j, _)| problem.families[problem.members[*j].family].kind == kind)
+            {
+                Some(entry) if entry.1 < g => *entry = (i, g),
+                Some(_) => {}
+                None => runners.push((i, g)),
+            }
+        }
+        runners.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let indistinguishable = if accepted {
+            indistinguishable_from(problem, &view_steps[best_view], best, &runners, options)
+        } else {
+            Vec::new()
+        };
+        // Occam: when a simpler correction (fewer columns) of another kind predicts the held-out
+        // blocks as well as the winner, the data cannot prefer the more flexible one; take
+        // the simpler and report the winner as indistinguishable.
+        let (best, runners, indistinguishable) = {
+            let width = |m: usize| problem.members[m].columns.len();
+            let simpler = indistinguishable
+                .iter()
+                .copied()
+                .filter(|&m| width(m) < width(best))
+                .min_by(|&a, &b| {
+                    width(a).cmp(&width(b)).then_with(|| {
+                        let gain =
+                            |m: usize| runners.iter().find(|r| r.0 == m).map_or(0.0, |r| r.1);
+                        gain(b).total_cmp(&gain(a))
+                    })
+                });
+            match simpler {
+                Some(chosen) => {
+                    let mut others: Vec<usize> = indistinguishable
+                        .iter()
+                        .copied()
+                        .filter(|&m| m != chosen)
+                        .collect();
+                    others.insert(0, best);
+                    let mut runners = runners.clone();
+                    let chosen_kind = problem.families[problem.members[chosen].family].kind;
+                    runners.retain(|r| {
+                        problem.families[problem.members[r.0].family].kind != chosen_kind
+                    });
+                    runners.insert(0, (best, gains[best].unwrap_or(0.0)));
+                    (chosen, runners, others)
+                }
+                None => (best, runners, indistinguishable),
+            }
+        };
+        let best_kind = problem.families[problem.members[best].family].kind;
+        steps.push(Step {
+            member: best,
+            gain: relative * sse0,
+            sse_before: *sse0,
+            p_value,
+            tail_p,
+            accepted,
+            runners_up: runners,
+            indistinguishable,
+        });
+        if !accepted {
+            break;
+        }
+        chosen_kinds.push(best_kind);
+        let refined = accept(best, &base);
+        base.extend(refined);
+    }
+    steps
+}
+
+/// Runners-up whose held-out errors, block by block, are not significantly worse than the
+/// winner's (a paired comparison over the time blocks, t below the threshold).
+fn indistinguishable_from(
+    problem: &Problem<'_>,
+    view_step: &ViewStep<'_>,
+    best: usize,
+    runners: &[(usize, f64)],
+    options: &Options,
+) -> Vec<usize> {
+    let blocks = problem.blocks;
+    let view = view_step.view;
+    let y = view.transform(problem.y);
+    let yty = blocks.dots(&y, &y);
+    let base_dots: Vec<Vec<f64>> = view_step.base.iter().map(|c| blocks.dots(c, &y)).collect();
+    let block_sse = |member: usize| -> Option<Vec<f64>> {
+        let m = &problem.members[member];
+        let mut columns: Vec<&[f64]> = view_step.base.iter().map(|c| c.as_slice()).collect();
+        columns.extend(m.columns.clone().map(|c| view.columns[c].as_slice()));
+        let gram = ModelGram::new(&columns, blocks);
+        let own_dots: Vec<Vec<f64>> = m
+            .columns
+            .clone()
+            .map(|c| blocks.dots(&view.columns[c], &y))
+            .collect();
+        let mut zty: Vec<&[f64]> = base_dots.iter().map(|d| d.as_slice()).collect();
+        zty.extend(own_dots.iter().map(|d| d.as_slice()));
+        gram.cv_block_sse(&TargetStats { zty, yty: &yty }, blocks)
+    };
+    let Some(winner) = block_sse(best) else {
+        return Vec::new();
+    };
+    runners
+        .iter()
+        .filter(|(_, g)| *g > 0.0)
+        .filter_map(|&(member, _)| {
+            let other = block_sse(member)?;
+            let d: Vec<f64> = other.iter().zip(&winner).map(|(o, w)| o - w).collect();
+            let m = mean(&d);
+            let s = std_dev(&d);
+            let t = if s > 0.0 {
+                m / (s / (d.len() as f64 - 1.0).max(1.0).sqrt())
+            } else if m > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            };
+            (t < options.distinguish_t).then_some(member)
+        })
+        .collect()
+}

@@ -1,0 +1,467 @@
+//! Numeric building blocks of the discrepancy analysis: first-order lags, delays, smooth signs,
+//! position bases, bin averages, robust scales, and phase-randomised surrogates (by FFT).
+
+use rand::Rng;
+
+/// First-order lag (exponential accumulation) of `values` with time constant `tau_s`, exact for
+/// each row's own time step. The state starts at the first value: the machine is taken to be in
+/// equilibrium with its drivers when the recording starts.
+pub fn lowpass(time: &[f64], values: &[f64], tau_s: f64) -> Vec<f64> {
+    let mut out = Vec::with_capacity(values.len());
+    let Some(&first) = values.first() else {
+        return out;
+    };
+    let mut state = first;
+    let mut previous_t = time.first().copied().unwrap_or(0.0);
+    // Recordings are mostly on a regular grid: the gain is recomputed only when the step
+    // changes (the exponential is the cost of this loop).
+    let (mut last_step, mut gain) = (f64::NAN, 0.0);
+    for (&t, &u) in time.iter().zip(values) {
+        let step = t - previous_t;
+        if step != last_step {
+            gain = -(-step / tau_s).exp_m1();
+            last_step = step;
+        }
+        state += gain * (u - state);
+        previous_t = t;
+        out.push(state);
+    }
+    out
+}
+
+/// Dot product with four accumulators (lets the compiler vectorise the reduction).
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0_f64; 4];
+    let chunks = n / 4;
+    for k in 0..chunks {
+        let i = 4 * k;
+        acc[0] += a[i] * b[i];
+        acc[1] += a[i + 1] * b[i + 1];
+        acc[2] += a[i + 2] * b[i + 2];
+        acc[3] += a[i + 3] * b[i + 3];
+    }
+    let mut total = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for i in 4 * chunks..n {
+        total += a[i] * b[i];
+    }
+    total
+}
+
+/// `values` as they were `seconds` earlier (negative: later), linearly interpolated; before the
+/// first sample (after the last) the first (last) value is held.
+pub fn shifted(time: &[f64], values: &[f64], seconds: f64) -> Vec<f64> {
+    let n = time.len();
+    let mut out = Vec::with_capacity(n);
+    if n == 0 {
+        return out;
+    }
+    let mut j = 0usize;
+    for &t in time {
+        let wanted = t - seconds;
+        if wanted <= time[0] {
+            out.push(values[0]);
+            continue;
+        }
+        if wanted >= time[n - 1] {
+            out.push(values[n - 1]);
+            continue;
+        }
+        while j + 1 < n && time[j + 1] <= wanted {
+            j += 1;
+        }
+        while j > 0 && time[j] > wanted {
+            j -= 1;
+        }
+        let span = time[j + 1] - time[j];
+        let fraction = if span > 0.0 {
+            (wanted - time[j]) / span
+        } else {
+            0.0
+        };
+        out.push(values[j] + fraction * (values[j + 1] - values[j]));
+    }
+    out
+}
+
+/// A sign that is ±1 away from zero and linear within ±`epsilon` (noise around standstill then
+/// gives small values instead of random ±1).
+pub fn smooth_sign(x: f64, epsilon: f64) -> f64 {
+    if epsilon <= 0.0 {
+        return x.signum() * f64::from(u8::from(x != 0.0));
+    }
+    (x / epsilon).clamp(-1.0, 1.0)
+}
+
+/// Legendre polynomial P_k at `u` in [-1, 1], for k = 0..=3.
+pub fn legendre(k: usize, u: f64) -> f64 {
+    match k {
+        0 => 1.0,
+        1 => u,
+        2 => 0.5 * (3.0 * u * u - 1.0),
+        _ => 0.5 * (5.0 * u * u * u - 3.0 * u),
+    }
+}
+
+/// `f` over `items` on up to as many threads as the machine has cores (at most four), the
+/// results in the order of the items. The work items here are independent and similar in
+/// size, so contiguous chunks balance well.
+pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .clamp(1, 4)
+        .min(items.len().max(1));
+    if threads <= 1 {
+        return items.iter().map(&f).collect();
+    }
+    let chunk = items.len().div_ceil(threads);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = items
+            .chunks(chunk)
+            .map(|part| scope.spawn(|| part.iter().map(&f).collect::<Vec<R>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| match h.join() {
+                Ok(results) => results,
+                Err(panic) => std::panic::resume_unwind(panic),
+            })
+            .collect()
+    })
+}
+
+/// Arithmetic mean (0 for an empty slice).
+pub fn mean(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        0.0
+    } else {
+        values.iter().sum::<f64>() / values.len() as f64
+    }
+}
+
+/// Population standard deviation.
+pub fn std_dev(values: &[f64]) -> f64 {
+    let m = mean(values);
+    if values.is_empty() {
+        return 0.0;
+    }
+    (values.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / values.len() as f64).sqrt()
+}
+
+/// Root mean square.
+pub fn rms(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt()
+}
+
+/// Median (of a copy).
+pub fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mut sorted = values.to_vec();
+    let mid = sorted.len() / 2;
+    let (_, m, _) = sorted.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}
+
+/// Quantile `q` in [0, 1] (nearest rank, of a copy).
+pub fn quantile(values: &[f64], q: f64) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mut sorted = values.to_vec();
+    let k = ((sorted.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+    let (_, v, _) = sorted.select_nth_unstable_by(k, f64::total_cmp);
+    *v
+}
+
+/// Median absolute deviation scaled to a Gaussian σ.
+pub fn robust_sigma(values: &[f64]) -> f64 {
+    let m = median(values);
+    let deviations: Vec<f64> = values.iter().map(|v| (v - m).abs()).collect();
+    1.4826 * median(&deviations)
+}
+
+/// Contiguous bins of near-equal size covering `0..n`, at most `max_bins` of them.
+pub fn bin_ranges(n: usize, max_bins: usize) -> Vec<std::ops::Range<usize>> {
+    let bins = n.min(max_bins.max(1));
+    (0..bins)
+        .map(|b| (b * n / bins)..((b + 1) * n / bins))
+        .collect()
+}
+
+/// The mean of `values` over each bin.
+pub fn bin_means(values: &[f64], bins: &[std::ops::Range<usize>]) -> Vec<f64> {
+    bins.iter().map(|r| mean(&values[r.clone()])).collect()
+}
+
+/// Centred moving average over `window` samples (shrinking at the ends), by prefix sums.
+pub fn moving_average(values: &[f64], window: usize) -> Vec<f64> {
+    let n = values.len();
+    let mut prefix = Vec::with_capacity(n + 1);
+    prefix.push(0.0);
+    let mut acc = 0.0;
+    for v in values {
+        acc += v;
+        prefix.push(acc);
+    }
+    let half = window / 2;
+    (0..n)
+        .map(|i| {
+            let lo = i.saturating_sub(half);
+            let hi = (i + half + 1).min(n);
+            (prefix[hi] - prefix[lo]) / (hi - lo) as f64
+        })
+        .collect()
+}
+
+/// Integrated autocorrelation time of `values`, in samples: 1 + 2 Σ ρ_k summed up to the first
+/// lag where the autocorrelation drops below zero (capped at `max_lag`). The autocorrelation
+/// comes from one FFT of the zero-padded series (O(n log n) for any lag range).
+pub fn integrated_autocorrelation(values: &[f64], max_lag: usize) -> f64 {
+    let n = values.len();
+    if n < 3 {
+        return 1.0;
+    }
+    let m = mean(values);
+    let size = (2 * n).next_power_of_two();
+    let mut re = vec![0.0; size];
+    let mut im = vec![0.0; size];
+    for (slot, v) in re.iter_mut().zip(values) {
+        *slot = v - m;
+    }
+    fft_radix2(&mut re, &mut im, false);
+    for (r, i) in re.iter_mut().zip(im.iter_mut()) {
+        *r = *r * *r + *i * *i;
+        *i = 0.0;
+    }
+    fft_radix2(&mut re, &mut im, true);
+    let variance = re[0];
+    if variance <= 0.0 {
+        return 1.0;
+    }
+    let mut total = 1.0;
+    for &c in re.iter().take(max_lag.min(n - 1)).skip(1) {
+        let rho = c / variance;
+        if rho <= 0.0 {
+            break;
+        }
+        total += 2.0 * rho;
+    }
+    total
+}
+
+/// In-place radix-2 complex FFT (length a power of two). `inverse` uses the conjugate twiddles
+/// and does not scale.
+fn fft_radix2(re: &mut [f64], im: &mut [f64], inverse: bool) {
+    let n = re.len();
+    if n <= 1 {
+        return;
+    }
+    let mut j = 0usize;
+    for i in 1..n {
+        let mut bit = n >> 1;
+        while j & bit != 0 {
+            j ^= bit;
+            bit >>= 1;
+        }
+        j |= bit;
+        if i < j {
+            re.swap(i, j);
+            im.swap(i, j);
+        }
+    }
+    let sign = if inverse { 1.0 } else { -1.0 };
+    let mut len = 2;
+    while len <= n {
+        let angle = sign * 2.0 * std::f64::consts::PI / len as f64;
+        let (w_im, w_re) = angle.sin_cos();
+        for start in (0..n).step_by(len) {
+            let (mut c_re, mut c_im) = (1.0, 0.0);
+            for k in 0..len / 2 {
+                let a = start + k;
+                let b = a + len / 2;
+                let t_re = re[b] * c_re - im[b] * c_im;
+                let t_im = re[b] * c_im + im[b] * c_re;
+                re[b] = re[a] - t_re;
+                im[b] = im[a] - t_im;
+                re[a] += t_re;
+                im[a] += t_im;
+                let next_re = c_re * w_re - c_im * w_im;
+                c_im = c_re * w_im + c_im * w_re;
+                c_re = next_re;
+            }
+        }
+        len <<= 1;
+    }
+}
+
+/// Discrete Fourier transform of any length (radix-2 when the length is a power of two,
+/// Bluestein's chirp-z algorithm otherwise). Unscaled in both directions.
+pub fn dft(re: &mut [f64], im: &mut [f64], inverse: bool) {
+    let n = re.len();
+    if n.is_power_of_two() {
+        fft_radix2(re, im, inverse);
+        return;
+    }
+    let m = (2 * n - 1).next_power_of_two();
+    let sign = if inverse { 1.0 } else { -1.0 };
+    // chirp w_k = exp(sign·iπk²/n); k² taken mod 2n keeps the angle accurate for large k.
+    let chirp: Vec<(f64, f64)> = (0..n)
+        .map(|k| {
+            let k2 = (k as u128 * k as u128 % (2 * n as u128)) as f64;
+            let angle = sign * std::f64::consts::PI * k2 / n as f64;
+            let (s, c) = angle.sin_cos();
+            (c, s)
+        })
+        .collect();
+    let mut a_re = vec![0.0; m];
+    let mut a_im = vec![0.0; m];
+    for k in 0..n {
+        let (c, s) = chirp[k];
+        a_re[k] = re[k] * c - im[k] * s;
+        a_im[k] = re[k] * s + im[k] * c;
+    }
+    let mut b_re = vec![0.0; m];
+    let mut b_im = vec![0.0; m];
+    b_re[0] = chirp[0].0;
+    b_im[0] = -chirp[0].1;
+    for k in 1..n {
+        b_re[k] = chirp[k].0;
+        b_im[k] = -chirp[k].1;
+        b_re[m - k] = chirp[k].0;
+        b_im[m - k] = -chirp[k].1;
+    }
+    fft_radix2(&mut a_re, &mut a_im, false);
+    fft_radix2(&mut b_re, &mut b_im, false);
+    for k in 0..m {
+        let (x, y) = (a_re[k], a_im[k]);
+        a_re[k] = x * b_re[k] - y * b_im[k];
+        a_im[k] = x * b_im[k] + y * b_re[k];
+    }
+    fft_radix2(&mut a_re, &mut a_im, true);
+    let scale = 1.0 / m as f64;
+    for k in 0..n {
+        let (x, y) = (a_re[k] * scale, a_im[k] * scale);
+        let (c, s) = chirp[k];
+        re[k] = x * c - y * s;
+        im[k] = x * s + y * c;
+    }
+}
+
+/// The amplitude spectrum of a series, ready for drawing phase-randomised surrogates.
+#[derive(Debug, Clone)]
+pub struct SurrogateSpectrum {
+    mean: f64,
+    re: Vec<f64>,
+    im: Vec<f64>,
+}
+
+impl SurrogateSpectrum {
+    /// Transforms `values` once.
+    pub fn new(values: &[f64]) -> Self {
+        let m = mean(values);
+        let mut re: Vec<f64> = values.iter().map(|v| v - m).collect();
+        let mut im = vec![0.0; re.len()];
+        dft(&mut re, &mut im, false);
+        SurrogateSpectrum { mean: m, re, im }
+    }
+
+    /// A surrogate with the same amplitude spectrum (hence the same circular autocorrelation)
+    /// and independent uniformly random phases.
+    pub fn draw(&self, rng: &mut impl Rng) -> Vec<f64> {
+        let n = self.re.len();
+        let mut re = vec![0.0; n];
+        let mut im = vec![0.0; n];
+        for k in 1..n.div_ceil(2) {
+            let amplitude = self.re[k].hypot(self.im[k]);
+            let phase: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+            let (s, c) = phase.sin_cos();
+            re[k] = amplitude * c;
+            im[k] = amplitude * s;
+            re[n - k] = amplitude * c;
+            im[n - k] = -amplitude * s;
+        }
+        if n.is_multiple_of(2) && n > 0 {
+            let amplitude = self.re[n / 2].hypot(self.im[n / 2]);
+            re[n / 2] = if rng.random_bool(0.5) {
+                amplitude
+            } else {
+                -amplitude
+            };
+        }
+        dft(&mut re, &mut im, true);
+        let scale = 1.0 / n.max(1) as f64;
+        re.iter().map(|v| v * scale + self.mean).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn dft_of_any_length_matches_the_definition_and_inverts() {
+        for n in [1usize, 2, 7, 8, 12, 31] {
+            let x: Vec<f64> = (0..n).map(|i| ((i * 7 + 3) % 5) as f64 - 1.3).collect();
+            let mut re = x.clone();
+            let mut im = vec![0.0; n];
+            dft(&mut re, &mut im, false);
+            for k in 0..n {
+                let (mut sr, mut si) = (0.0, 0.0);
+                for (j, v) in x.iter().enumerate() {
+                    let a = -2.0 * std::f64::consts::PI * (j * k) as f64 / n as f64;
+                    sr += v * a.cos();
+                    si += v * a.sin();
+                }
+                assert!(
+                    (re[k] - sr).abs() < 1e-9 && (im[k] - si).abs() < 1e-9,
+                    "n={n}"
+                );
+            }
+            dft(&mut re, &mut im, true);
+            for (a, b) in re.iter().zip(&x) {
+                assert!((a / n as f64 - b).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn surrogates_keep_the_spectrum_and_the_autocorrelation() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut ar = vec![0.0; 4000];
+        for i in 1..ar.len() {
+            ar[i] = 0.95 * ar[i - 1] + rng.random_range(-1.0..1.0);
+        }
+        let spectrum = SurrogateSpectrum::new(&ar);
+        let s = spectrum.draw(&mut rng);
+        assert!((std_dev(&s) - std_dev(&ar)).abs() < 1e-9 * std_dev(&ar).max(1.0));
+        let tau_original = integrated_autocorrelation(&ar, 400);
+        let tau_surrogate = integrated_autocorrelation(&s, 400);
+        assert!(
+            (tau_surrogate / tau_original - 1.0).abs() < 0.5,
+            "{tau_surrogate} vs {tau_original}"
+        );
+        assert_ne!(s, ar);
+    }
+
+    #[test]
+    fn lowpass_and_shift_behave() {
+        let time: Vec<f64> = (0..100).map(f64::from).collect();
+        let step: Vec<f64> = time
+            .iter()
+            .map(|&t| if t < 10.0 { 0.0 } else { 1.0 })
+            .collect();
+        let lp = lowpass(&time, &step, 5.0);
+        assert!((lp[15] - (1.0 - (-1.2_f64).exp())).abs() < 1e-12);
+        let late = shifted(&time, &time, 2.5);
+        assert!((late[10] - 7.5).abs() < 1e-12 && late[1] == 0.0);
+        let early = shifted(&time, &time, -2.0);
+        assert!((early[10] - 12.0).abs() < 1e-12 && early[99] == 99.0);
+    }
+}
