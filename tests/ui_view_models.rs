@@ -313,6 +313,57 @@ fn overview_view_models() {
     }
 }
 
+/// The Overview card of a feed axis shows its preload state from the warm-up analysis against
+/// the healthy baseline, and a friction rise turns the light to warning with the evidence.
+#[test]
+fn overview_shows_the_preload_state() {
+    let preload = |s: &HmiState| {
+        let view = vm::overview::build(s);
+        let card = view
+            .cards
+            .into_iter()
+            .find(|c| c.axis == "X")
+            .expect("an X card");
+        let reading = card
+            .readings
+            .iter()
+            .find(|r| r.label == "preload")
+            .cloned()
+            .expect("a preload reading");
+        (reading, card.light)
+    };
+    let healthy = warmup_state("pass");
+    let (reading, light) = preload(&healthy);
+    assert!(reading.value.contains("% of nominal"), "{reading:?}");
+    assert_eq!(reading.severity, Severity::Normal);
+    assert!(
+        !light.reasons.iter().any(|r| r.contains("preload")),
+        "{light:?}"
+    );
+
+    let mut worn = warmup_state("pass");
+    if let Some(a) = worn.warmup.analysis.as_mut() {
+        a.fingerprint = Ok(fingerprint(0.70));
+    }
+    let (reading, light) = preload(&worn);
+    assert!(reading.value.ends_with("friction rise"), "{reading:?}");
+    assert_eq!(reading.severity, Severity::Warning);
+    assert_eq!(light.severity, Severity::Warning);
+    assert!(
+        light
+            .reasons
+            .iter()
+            .any(|r| r.starts_with("friction rise on X")),
+        "{light:?}"
+    );
+    insta::assert_yaml_snapshot!("overview_preload_friction_rise", preload(&worn).0);
+
+    let mut unmeasured = warmup_state("pass");
+    unmeasured.warmup.analysis = None;
+    let (reading, _) = preload(&unmeasured);
+    assert_eq!(reading.value, "not measured (warm-up analysis)");
+}
+
 #[test]
 fn status_bar_view_models() {
     for which in STATES {

@@ -122,6 +122,9 @@ pub fn axis_condition(state: &HmiState, axis: AxisId) -> Light {
             ));
         }
     }
+    if let Some((reading, Some(reason))) = preload_reading(state, axis) {
+        reasons.push((reading.severity, reason));
+    }
     reasons.sort_by_key(|r| std::cmp::Reverse(r.0));
     let severity = reasons.first().map_or(Severity::Normal, |r| r.0);
     let reasons = if reasons.is_empty() {
@@ -178,6 +181,63 @@ fn estimate_readings(state: &HmiState, axis: AxisId) -> Vec<(Reading, Severity, 
         .collect()
 }
 
+/// The preload state of a feed axis from the shift's warm-up analysis (its friction fingerprint
+/// against the stored healthy baseline): the reading, and a reason for the light when the
+/// diagnosis is not normal. `None` for axes without a screw in the profile.
+fn preload_reading(state: &HmiState, axis: AxisId) -> Option<(Reading, Option<String>)> {
+    use crate::estimators::fingerprint::{PreloadState, diagnose_preload};
+    let axis_profile = state.profile.as_ref()?.axes.get(&axis)?;
+    axis_profile.nut.as_ref()?;
+    let reading = |value: String, unit: &str, severity| Reading {
+        label: "preload".into(),
+        value,
+        unit: unit.into(),
+        severity,
+    };
+    let analysed = state
+        .warmup
+        .analysis
+        .as_ref()
+        .filter(|a| a.axis == axis)
+        .and_then(|a| a.fingerprint.as_ref().ok());
+    let Some(current) = analysed else {
+        return Some((
+            reading(
+                "not measured (warm-up analysis)".into(),
+                "",
+                Severity::Normal,
+            ),
+            None,
+        ));
+    };
+    let Some(baseline) = state.warmup.baselines.get(&axis) else {
+        return Some((
+            reading(
+                "no healthy baseline to compare".into(),
+                "",
+                Severity::Normal,
+            ),
+            None,
+        ));
+    };
+    let diagnosis = diagnose_preload(current, baseline, axis_profile)?;
+    let percent = format!("{:.0} % of nominal", 100.0 * diagnosis.preload_ratio);
+    Some(match diagnosis.state {
+        PreloadState::Normal => (reading(percent, "", Severity::Normal), None),
+        PreloadState::PreloadLoss => (
+            reading(format!("{percent}, preload loss"), "", Severity::Warning),
+            Some(format!("preload loss on {axis}: {}", diagnosis.evidence)),
+        ),
+        PreloadState::FrictionRise => (
+            reading(format!("{percent}, friction rise"), "", Severity::Warning),
+            Some(format!(
+                "friction rise on {axis} (wear, contamination or tired lubricant): {}",
+                diagnosis.evidence
+            )),
+        ),
+    })
+}
+
 fn stator_severity(state: &HmiState, value: Option<f64>) -> Severity {
     let limits = state.thresholds.stator_temp_c;
     match value {
@@ -232,6 +292,7 @@ pub fn build(state: &HmiState) -> OverviewView {
                 }
             })
             .chain(estimate_readings(state, axis).into_iter().map(|r| r.0))
+            .chain(preload_reading(state, axis).map(|r| r.0))
             .collect();
             AxisCard {
                 axis: axis.to_string(),
