@@ -407,7 +407,7 @@ impl HmiApp {
             match end {
                 Ok(outcome) => {
                     let text = format!(
-                        "{title}: {} finding(s), held-out R² {} → {}",
+                        "{title}: {} finding(s), R² {} before → {} after (held out)",
                         outcome.report.findings.len(),
                         vm::statistic(outcome.report.baseline.r2),
                         vm::statistic(outcome.report.improved.r2)

@@ -152,3 +152,76 @@ pub fn read_shared_columns(
         .collect();
     Ok(SharedColumns { sim, real, columns })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::discrepancy::PlotData;
+
+    #[test]
+    fn the_plot_pyramid_keeps_every_series_and_decimates_on_request() {
+        let n = 1000;
+        let time_s: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let ramp: Vec<f64> = time_s.iter().map(|t| t * 0.5).collect();
+        let mut report = crate::discrepancy::DiscrepancyReport {
+            target: "S.stator_temp_C".into(),
+            rows: n,
+            verdict: crate::discrepancy::Verdict::Consistent,
+            baseline: crate::discrepancy::FitQuality { r2: 1.0, rmse: 0.0 },
+            improved: crate::discrepancy::FitQuality { r2: 1.0, rmse: 0.0 },
+            calibrated: crate::discrepancy::FitQuality { r2: 1.0, rmse: 0.0 },
+            mismatch_regions: Vec::new(),
+            agreement_regions: Vec::new(),
+            findings: Vec::new(),
+            calibration: crate::discrepancy::Calibration {
+                offset: 0.0,
+                gain: 1.0,
+                gain_absorbed: false,
+                explanation: String::new(),
+            },
+            noise_floor: crate::discrepancy::NoiseFloor {
+                rms: 0.0,
+                correlation_time_s: 1.0,
+                window_s: 1.0,
+            },
+            alignment: crate::discrepancy::Alignment {
+                resampled: false,
+                note: String::new(),
+                start_s: 0.0,
+                end_s: 999.0,
+            },
+            not_tested: Vec::new(),
+            method: crate::discrepancy::Method {
+                folds: 2,
+                surrogates: 1,
+                alpha: 0.01,
+                selection_rows: n,
+                candidates: 0,
+                steps: Vec::new(),
+            },
+            plot: PlotData::default(),
+        };
+        report.plot = PlotData {
+            target: report.target.clone(),
+            time_s: time_s.clone(),
+            real: ramp.clone(),
+            sim: vec![0.0; n],
+            corrected: ramp.clone(),
+            residual_before: ramp.clone(),
+            residual_after: vec![0.0; n],
+            regions: Vec::new(),
+        };
+        let history = plot_history(&report);
+        assert_eq!(history.channels().len(), PLOT_CHANNELS.len());
+        let all: Vec<usize> = (0..PLOT_CHANNELS.len()).collect();
+        let full = history.window(&all, 0.0, 999.0, 2000);
+        assert_eq!(full.len(), n, "every point when the budget allows");
+        assert_eq!(full.series[0].mean[10], 5.0);
+        let coarse = history.window(&all, 0.0, 999.0, 50);
+        assert!(coarse.len() <= 50 && coarse.len() >= 25, "{}", coarse.len());
+        // Bucket means of a ramp stay on the ramp.
+        for (t, v) in coarse.time_s.iter().zip(&coarse.series[3].mean) {
+            assert!((f64::from(*v) - 0.5 * t).abs() < 1.0, "{t} {v}");
+        }
+    }
+}

@@ -212,7 +212,8 @@ pub enum EventKind {
     Write,
     /// The recorder started, stopped or failed.
     Recorder,
-    /// A background job (model fit) started, finished, failed or was cancelled.
+    /// A background job (model fit, sim-vs-real analysis, warm-up analysis) started,
+    /// finished, failed or was cancelled.
     Job,
 }
 

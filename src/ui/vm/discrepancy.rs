@@ -354,3 +354,28 @@ fn plots(outcome: &DiscrepancyOutcome, target_unit: &str, max_points: usize) -> 
         },
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{condition_text, parameter_value};
+
+    #[test]
+    fn parameters_and_conditions_carry_their_units() {
+        assert_eq!(parameter_value("tau_min", 41.25, "°C"), "41.2500 min");
+        assert_eq!(parameter_value("delay_s", 12.0, "N·m"), "12.0000 s");
+        assert_eq!(parameter_value("gain_per_K", 3.8, "µm"), "3.8000 µm/K");
+        assert_eq!(parameter_value("per_A2", 0.5, "°C"), "0.5000 °C/A²");
+        assert_eq!(parameter_value("effect_range", 2.0, "°C"), "2.0000 °C");
+        assert_eq!(parameter_value("share", 0.5, "°C"), "0.5000");
+        assert_eq!(parameter_value("gain_per_K", 3.8, ""), "3.8000 1/K");
+        assert_eq!(
+            condition_text("S.speed_rpm:moving_share", 0.615),
+            "S moving 62 % of the time"
+        );
+        assert_eq!(
+            condition_text("coolant_on", 0.25),
+            "coolant on 25 % of the time"
+        );
+        assert_eq!(condition_text("X.load_pct", 10.687), "X load 10.69 %");
+    }
+}
