@@ -472,6 +472,10 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     };
     settings.forms.checklist_operator = "otto".into();
     settings.forms.workpiece_diameter_mm = "62.5".into();
+    settings.forms.lab_section = servosight::ui::panels::LabSection::Discrepancy;
+    settings.forms.disc_sim = "/data/sim.csv".into();
+    settings.forms.disc_real = "/data/real.csv".into();
+    settings.forms.disc_target = "S.stator_temp_C".into();
     settings.trends.selected = vec!["X.load_pct".into()];
     settings.forms.operator = "otto".into();
     settings.forms.password = "never saved".into();
@@ -483,6 +487,13 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     assert_eq!(back.window_pos, Some([40.0, 60.0]));
     assert_eq!(back.forms.checklist_operator, "otto");
     assert_eq!(back.forms.workpiece_diameter_mm, "62.5");
+    assert_eq!(
+        back.forms.lab_section,
+        servosight::ui::panels::LabSection::Discrepancy
+    );
+    assert_eq!(back.forms.disc_sim, "/data/sim.csv");
+    assert_eq!(back.forms.disc_real, "/data/real.csv");
+    assert_eq!(back.forms.disc_target, "S.stator_temp_C");
     assert!(!back.dark);
     assert_eq!(back.window_size, Some([1200.0, 700.0]));
     assert_eq!(back.trends.selected, vec!["X.load_pct".to_string()]);
@@ -702,4 +713,175 @@ fn an_estimate_proposal_goes_through_approval_and_is_written() {
     };
     assert!(result.verified, "{result:?}");
     assert_eq!(result.values[0].read_back_um, Some(proposed));
+}
+
+/// A concealed-effect pair of `tests/discrepancy.rs` (the simulation omits copper loss),
+/// written as CSV v1 files; returns the paths and the target.
+fn discrepancy_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf, String) {
+    use crate::discrepancy::{Noise, case_for, make_pair};
+    let case = case_for(servosight::sim::Effect::CopperLoss, 4, Noise::White, 3.0);
+    let pair = make_pair(&case);
+    let sim = dir.join("sim.csv");
+    let real = dir.join("real.csv");
+    servosight::signal::write_recording(&sim, &pair.sim).expect("sim written");
+    servosight::signal::write_recording(&real, &pair.real).expect("real written");
+    (sim, real, case.target)
+}
+
+#[test]
+fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physics() {
+    let mut f = start();
+    let (sim, real, target) = discrepancy_files(f._dir.path());
+    let h = &mut f.harness;
+    click(h, "Model lab");
+    click(h, "Sim vs real");
+    type_into(h, "Simulation (CSV v1)", sim.to_str().expect("utf-8 path"));
+    type_into(
+        h,
+        "Real recording (CSV v1)",
+        real.to_str().expect("utf-8 path"),
+    );
+    // The headers are read on a job; the columns both files share are offered.
+    step_until(h, "the shared columns", |app| {
+        app.state.model_lab.discrepancy.columns.is_some()
+            || app.state.model_lab.discrepancy.columns_error.is_some()
+    });
+    let offered = servosight::ui::vm::discrepancy::build(&h.state().state, 100).shared_columns;
+    assert!(offered.contains(&target), "{offered:?}");
+    assert!(!offered.iter().any(|c| c == "time_s"));
+    type_into(h, "Compared column", &target);
+
+    // Cancel frees the panel at once (the analysis itself cannot be interrupted).
+    click(h, "Analyse");
+    assert!(h.state().state.model_lab.discrepancy.running.is_some());
+    click(h, "Cancel");
+    let lab = &h.state().state.model_lab.discrepancy;
+    assert!(lab.running.is_none());
+    assert_eq!(lab.error.as_deref(), Some("cancelled"));
+    assert!(shows(h, "Analyse"));
+
+    click(h, "Analyse");
+    step_until_within(h, "the analysis", 120, |app| {
+        let d = &app.state.model_lab.discrepancy;
+        d.result.is_some() || d.error.is_some()
+    });
+    settle(h);
+    let lab = &h.state().state.model_lab.discrepancy;
+    assert_eq!(lab.error, None);
+    let report = &lab.result.as_ref().expect("a result").report;
+    assert_eq!(report.findings[0].physics, "copper_loss");
+    let view = servosight::ui::vm::discrepancy::build(&h.state().state, 1500);
+    let result = view.result.expect("a result view");
+    assert!(
+        !result.plots.regions.is_empty(),
+        "mismatch regions to shade"
+    );
+    assert_eq!(result.plots.regions.len(), report.mismatch_regions.len());
+    assert!(shows(h, "copper_loss"));
+    assert!(shows(h, "missing physics"));
+    assert!(shows(h, "after: sim + corrections (held out)"));
+    assert!(shows(h, "I²R"), "the finding's explanation is shown");
+}
+
+#[test]
+fn a_missing_file_shows_the_error_in_the_model_lab() {
+    let mut f = start();
+    let missing = f._dir.path().join("no-such-sim.csv");
+    let h = &mut f.harness;
+    click(h, "Model lab");
+    click(h, "Sim vs real");
+    type_into(
+        h,
+        "Simulation (CSV v1)",
+        missing.to_str().expect("utf-8 path"),
+    );
+    type_into(
+        h,
+        "Real recording (CSV v1)",
+        missing.to_str().expect("utf-8 path"),
+    );
+    type_into(h, "Compared column", "S.stator_temp_C");
+    click(h, "Analyse");
+    step_until(h, "the error", |app| {
+        app.state.model_lab.discrepancy.error.is_some()
+    });
+    settle(h);
+    let error = h
+        .state()
+        .state
+        .model_lab
+        .discrepancy
+        .error
+        .clone()
+        .expect("an error");
+    assert!(error.contains("no-such-sim.csv"), "{error}");
+    assert!(shows(h, "no-such-sim.csv"));
+    assert!(shows(h, "Analyse"), "the panel is free again");
+}
+
+/// Bad input comes back as the library's own message: a target missing from a file, and two
+/// recordings that do not overlap in time.
+#[test]
+fn the_discrepancy_job_reports_the_librarys_errors() {
+    use servosight::ui::jobs::{JobContext, JobStop};
+    use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
+    use std::sync::{Arc, atomic::AtomicBool};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (sim, real, target) = discrepancy_files(dir.path());
+    let (tx, rx) = std::sync::mpsc::sync_channel(1024);
+    let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
+    let missing_target = run_discrepancy(
+        DiscrepancyRequest {
+            sim: sim.clone(),
+            real: real.clone(),
+            target: "ref.S.no_such_column_um".into(),
+        },
+        &context,
+    )
+    .err();
+    let Some(JobStop::Failed(message)) = missing_target else {
+        panic!("expected a failure, got {missing_target:?}");
+    };
+    assert!(
+        message.contains("ref.S.no_such_column_um") && message.contains("not a column"),
+        "{message}"
+    );
+    // The same real recording shifted a day later: no overlap.
+    let recording = servosight::signal::read_recording(&real).expect("real reads");
+    let mut later = servosight::signal::Recording::with_schema("later", recording.schema().clone());
+    let mut row = Vec::new();
+    for i in 0..recording.len() {
+        recording.row_into(i, &mut row);
+        row[0] += 86_400.0;
+        later.push_row(&row).expect("row");
+    }
+    let later_path = dir.path().join("later.csv");
+    servosight::signal::write_recording(&later_path, &later).expect("written");
+    let no_overlap = run_discrepancy(
+        DiscrepancyRequest {
+            sim,
+            real: later_path,
+            target,
+        },
+        &context,
+    )
+    .err();
+    let Some(JobStop::Failed(message)) = no_overlap else {
+        panic!("expected a failure, got {no_overlap:?}");
+    };
+    assert!(message.contains("do not overlap in time"), "{message}");
+    let stages: Vec<String> = rx
+        .try_iter()
+        .filter_map(|m| match m {
+            servosight::ui::jobs::JobMessage::Progress(p) => Some(p.stage),
+            _ => None,
+        })
+        .collect();
+    for phase in [
+        "reading the simulation",
+        "reading the real recording",
+        "analysing",
+    ] {
+        assert!(stages.iter().any(|s| s.starts_with(phase)), "{stages:?}");
+    }
 }

@@ -778,3 +778,94 @@ fn trends_show_the_straightness_profile_and_export_a_png() {
     let empty = vm::trends::build(&state("normal"), &TrendsSettings::default(), 1000);
     assert!(servosight::ui::export_png::render_trends(&empty, false, [100, 100]).is_err());
 }
+
+/// A discrepancy outcome as the job makes it, from a twin pair of `tests/discrepancy.rs`
+/// (fixed file names so the snapshot does not carry temporary paths).
+fn discrepancy_outcome(
+    pair: &crate::discrepancy::Pair,
+    target: &str,
+) -> servosight::ui::sim_vs_real::DiscrepancyOutcome {
+    use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest, plot_history};
+    let report = servosight::discrepancy::analyse(
+        &pair.sim,
+        &pair.real,
+        target,
+        &servosight::discrepancy::Options::default(),
+    )
+    .expect("the analysis runs");
+    DiscrepancyOutcome {
+        request: DiscrepancyRequest {
+            sim: "sim.csv".into(),
+            real: "real.csv".into(),
+            target: target.into(),
+        },
+        plot: plot_history(&report),
+        report,
+    }
+}
+
+/// The sim-vs-real part of the Model lab: a consistent pair, a pair whose simulation omits
+/// copper loss (findings and mismatch regions), the library's error, and a running analysis.
+#[test]
+fn discrepancy_view_models() {
+    use crate::discrepancy::{Noise, case_for, make_pair};
+    use servosight::sim::Effect;
+    use servosight::ui::sim_vs_real::SharedColumns;
+    // Few points per line keep the snapshots readable; the app draws 1500.
+    const POINTS: usize = 24;
+    let missing = case_for(Effect::CopperLoss, 4, Noise::White, 3.0);
+    let missing_pair = make_pair(&missing);
+    let consistent = crate::discrepancy::Case {
+        omitted: Vec::new(),
+        ..missing.clone()
+    };
+    let consistent_pair = make_pair(&consistent);
+    let columns = SharedColumns {
+        sim: "sim.csv".into(),
+        real: "real.csv".into(),
+        columns: vec![missing.target.clone(), "X.torque_Nm".into()],
+    };
+    let mut s = state("normal");
+    s.model_lab.discrepancy.columns = Some(columns);
+
+    s.model_lab.discrepancy.result = Some(discrepancy_outcome(&missing_pair, &missing.target));
+    let view = vm::discrepancy::build(&s, POINTS);
+    let result = view.result.as_ref().expect("a result");
+    assert!(result.missing_physics);
+    assert_eq!(result.findings[0].physics, "copper_loss");
+    assert!(!result.plots.regions.is_empty(), "regions to shade");
+    assert!(result.plots.residual.points.len() <= POINTS);
+    insta::assert_yaml_snapshot!("discrepancy_missing_physics", view);
+
+    s.model_lab.discrepancy.result =
+        Some(discrepancy_outcome(&consistent_pair, &consistent.target));
+    let view = vm::discrepancy::build(&s, POINTS);
+    let result = view.result.as_ref().expect("a result");
+    assert!(!result.missing_physics);
+    assert!(result.findings.is_empty());
+    insta::assert_yaml_snapshot!("discrepancy_consistent", view);
+
+    let error = servosight::discrepancy::analyse(
+        &missing_pair.sim,
+        &missing_pair.real,
+        "ref.S.no_such_column_um",
+        &servosight::discrepancy::Options::default(),
+    )
+    .expect_err("the target is missing");
+    s.model_lab.discrepancy.result = None;
+    s.model_lab.discrepancy.error = Some(error.to_string());
+    let view = vm::discrepancy::build(&s, POINTS);
+    assert!(
+        view.error
+            .as_deref()
+            .is_some_and(|e| e.contains("ref.S.no_such_column_um"))
+    );
+    insta::assert_yaml_snapshot!("discrepancy_error", view);
+
+    s.model_lab.discrepancy.error = None;
+    s.model_lab.discrepancy.running = Some(JobProgress {
+        stage: "reading the real recording (8192 rows)".into(),
+        fraction: Some(0.3),
+    });
+    insta::assert_yaml_snapshot!("discrepancy_running", vm::discrepancy::build(&s, POINTS));
+}

@@ -12,6 +12,9 @@ use super::export_png::{PngOutcome, PngRequest};
 use super::jobs::{FitOutcome, FitRequest, Job, JobMessage, run_fit};
 use super::panels::{self, Forms, Tab, UiCommand};
 use super::session::{Session, SessionCommand};
+use super::sim_vs_real::{
+    DiscrepancyOutcome, DiscrepancyRequest, SharedColumns, read_shared_columns, run_discrepancy,
+};
 use super::state::{
     CompensationState, Event, EventKind, HmiState, LinkSnapshot, PushFlow, Severity,
     StatusThresholds,
@@ -103,6 +106,8 @@ pub struct HmiOptions {
 const EVENT_ROWS: usize = 2000;
 /// Points per series on the Trends plots.
 const TREND_POINTS: usize = 1000;
+/// Points per line on the Model lab's sim-vs-real plots.
+const DISCREPANCY_POINTS: usize = 1500;
 /// How often settings are saved while running.
 const SAVE_EVERY: Duration = Duration::from_secs(10);
 
@@ -120,6 +125,10 @@ pub struct HmiApp {
     warmup_job: Option<Job<WarmupAnalysis>>,
     depth_job: Option<Job<DepthOutcome>>,
     png_job: Option<Job<PngOutcome>>,
+    discrepancy_job: Option<Job<DiscrepancyOutcome>>,
+    columns_job: Option<Job<SharedColumns>>,
+    /// The (simulation, real) paths whose shared columns were last asked for.
+    columns_asked: Option<(String, String)>,
     /// When the depth of cut was last recomputed on its own (wall clock).
     depth_refreshed: Option<Instant>,
     export_note: Option<String>,
@@ -185,6 +194,9 @@ impl HmiApp {
             warmup_job: None,
             depth_job: None,
             png_job: None,
+            discrepancy_job: None,
+            columns_job: None,
+            columns_asked: None,
             depth_refreshed: None,
             export_note: None,
             ingest_budget: options.ingest_budget,
@@ -205,6 +217,8 @@ impl HmiApp {
         }
         self.poll_fit_job();
         self.poll_analysis_jobs();
+        self.poll_discrepancy_jobs();
+        self.refresh_shared_columns();
         self.refresh_depth_of_cut();
         self.log_condition_changes();
         if self.applied_theme != Some(self.settings.dark) {
@@ -230,7 +244,9 @@ impl HmiApp {
             || self.fit_job.is_some()
             || self.warmup_job.is_some()
             || self.depth_job.is_some()
-            || self.png_job.is_some();
+            || self.png_job.is_some()
+            || self.discrepancy_job.is_some()
+            || self.columns_job.is_some();
         ctx.request_repaint_after(if live {
             Duration::from_millis(33)
         } else {
@@ -376,6 +392,123 @@ impl HmiApp {
             });
         } else if let Some(progress) = png_progress {
             self.export_note = Some(format!("PNG export: {}", progress.stage));
+        }
+    }
+
+    /// Follows the sim-vs-real analysis and the header read behind its target choice.
+    fn poll_discrepancy_jobs(&mut self) {
+        let lab = &mut self.state.model_lab.discrepancy;
+        let title = self
+            .discrepancy_job
+            .as_ref()
+            .map(|job| job.title.clone())
+            .unwrap_or_default();
+        if let Some(end) = poll_job(&mut self.discrepancy_job, &mut lab.running) {
+            match end {
+                Ok(outcome) => {
+                    let text = format!(
+                        "{title}: {} finding(s), R² {} before → {} after (held out)",
+                        outcome.report.findings.len(),
+                        vm::statistic(outcome.report.baseline.r2),
+                        vm::statistic(outcome.report.improved.r2)
+                    );
+                    lab.result = Some(outcome);
+                    lab.error = None;
+                    self.job_event(Severity::Normal, text);
+                }
+                Err(reason) => {
+                    let text = format!("{title} stopped: {reason}");
+                    lab.error = Some(reason);
+                    self.job_event(Severity::Warning, text);
+                }
+            }
+        }
+        let mut ignored = None;
+        if let Some(end) = poll_job(&mut self.columns_job, &mut ignored) {
+            let lab = &mut self.state.model_lab.discrepancy;
+            match end {
+                Ok(columns) => {
+                    lab.columns = Some(columns);
+                    lab.columns_error = None;
+                }
+                Err(reason) => {
+                    lab.columns = None;
+                    lab.columns_error = Some(reason);
+                }
+            }
+        }
+    }
+
+    /// Reads the two files' headers (on a job, since even a header is file I/O) whenever the
+    /// sim-vs-real section is open and its paths changed, so the shared columns are offered.
+    fn refresh_shared_columns(&mut self) {
+        let forms = &self.settings.forms;
+        if self.settings.tab != Tab::ModelLab
+            || forms.lab_section != panels::LabSection::Discrepancy
+            || self.columns_job.is_some()
+        {
+            return;
+        }
+        let paths = (
+            forms.disc_sim.trim().to_string(),
+            forms.disc_real.trim().to_string(),
+        );
+        if paths.0.is_empty() || paths.1.is_empty() || self.columns_asked.as_ref() == Some(&paths) {
+            return;
+        }
+        let (sim, real) = (PathBuf::from(&paths.0), PathBuf::from(&paths.1));
+        self.columns_asked = Some(paths);
+        match Job::spawn("shared columns", move |c| read_shared_columns(sim, real, c)) {
+            Ok(job) => self.columns_job = Some(job),
+            Err(error) => {
+                self.state.model_lab.discrepancy.columns_error =
+                    Some(format!("cannot start reading the headers: {error}"));
+            }
+        }
+    }
+
+    fn start_discrepancy(&mut self) {
+        if self.discrepancy_job.is_some() {
+            return;
+        }
+        let forms = &self.settings.forms;
+        let request = DiscrepancyRequest {
+            sim: PathBuf::from(forms.disc_sim.trim()),
+            real: PathBuf::from(forms.disc_real.trim()),
+            target: forms.disc_target.trim().to_string(),
+        };
+        let title = format!(
+            "discrepancy of {} ({} vs {})",
+            request.target,
+            request.sim.display(),
+            request.real.display()
+        );
+        let lab = &mut self.state.model_lab.discrepancy;
+        match Job::spawn(title.clone(), move |c| run_discrepancy(request, c)) {
+            Ok(job) => {
+                lab.running = Some(super::state::JobProgress {
+                    stage: "starting".into(),
+                    fraction: Some(0.0),
+                });
+                lab.error = None;
+                self.discrepancy_job = Some(job);
+                self.job_event(Severity::Normal, format!("{title} started"));
+            }
+            Err(error) => lab.error = Some(format!("cannot start the analysis: {error}")),
+        }
+    }
+
+    /// Cancels the analysis and frees the panel at once: the job is asked to stop and
+    /// dropped, so whatever it still computes (the library's analysis cannot be interrupted)
+    /// is discarded when its thread ends.
+    fn cancel_discrepancy(&mut self) {
+        if let Some(job) = self.discrepancy_job.take() {
+            job.cancel();
+            let lab = &mut self.state.model_lab.discrepancy;
+            lab.running = None;
+            lab.error = Some("cancelled".into());
+            let text = format!("{} cancelled", job.title);
+            self.job_event(Severity::Normal, text);
         }
     }
 
@@ -646,9 +779,18 @@ impl HmiApp {
                 });
             }
             Tab::ModelLab => {
-                let view = vm::model_lab::build(&self.state);
                 egui::CentralPanel::default().show(ui, |ui| {
-                    panels::model_lab::model_lab_ui(ui, &view, forms, &mut commands);
+                    panels::model_lab::section_ui(ui, forms);
+                    match forms.lab_section {
+                        panels::LabSection::Fit => {
+                            let view = vm::model_lab::build(&self.state);
+                            panels::model_lab::model_lab_ui(ui, &view, forms, &mut commands);
+                        }
+                        panels::LabSection::Discrepancy => {
+                            let view = vm::discrepancy::build(&self.state, DISCREPANCY_POINTS);
+                            panels::model_lab::discrepancy_ui(ui, &view, forms, &mut commands);
+                        }
+                    }
                 });
             }
             Tab::Events => {
@@ -778,6 +920,8 @@ impl HmiApp {
                     }
                 }
             }
+            UiCommand::StartDiscrepancy => self.start_discrepancy(),
+            UiCommand::CancelDiscrepancy => self.cancel_discrepancy(),
             UiCommand::SetRecording(on) => self.send(SessionCommand::SetRecording(on)),
             UiCommand::ToggleEventKind(kind) => {
                 let hidden = &mut self.settings.events.hidden;

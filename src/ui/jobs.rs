@@ -155,6 +155,48 @@ impl<R: Read> Read for CountingReader<R> {
     }
 }
 
+/// Reads a recording file on a job's thread, reporting `stage (N rows)` with a fraction that
+/// moves through `span` as the bytes are read, and stopping within 8192 rows of a cancel.
+pub fn read_with_progress<T>(
+    path: &std::path::Path,
+    context: &JobContext<T>,
+    stage: &str,
+    span: std::ops::Range<f32>,
+) -> Result<Recording, JobStop> {
+    let failed = |e: &dyn std::fmt::Display| JobStop::Failed(e.to_string());
+    let file = std::fs::File::open(path)
+        .map_err(|e| JobStop::Failed(format!("{}: {e}", path.display())))?;
+    // The size only scales the progress bar: an unknown size must not stop the read.
+    let size = file.metadata().map(|m| m.len()).unwrap_or(0).max(1);
+    let read = Arc::new(AtomicU64::new(0));
+    let counting = CountingReader {
+        inner: file,
+        read: Arc::clone(&read),
+    };
+    let source = path.display().to_string();
+    let mut reader = RecordingReader::from_reader(counting, &source).map_err(|e| failed(&e))?;
+    let mut recording = Recording::with_schema(source, reader.schema().clone());
+    for (key, value) in reader.metadata().to_vec() {
+        recording.set_metadata(&key, &value);
+    }
+    let mut row = Vec::new();
+    let mut rows = 0u64;
+    while reader.read_row(&mut row).map_err(|e| failed(&e))? {
+        recording.push_row(&row).map_err(|e| failed(&e))?;
+        rows += 1;
+        if rows.is_multiple_of(8192) {
+            context.check()?;
+            let fraction = (read.load(Ordering::Relaxed) as f32 / size as f32).min(1.0);
+            context.progress(
+                &format!("{stage} ({rows} rows)"),
+                Some(span.start + (span.end - span.start) * fraction),
+            );
+        }
+    }
+    context.check()?;
+    Ok(recording)
+}
+
 /// Reads the database and fits the model, reporting progress; cancellable while the file is
 /// read and between the fitting stages (a single QR of a million rows takes about half a
 /// second and is not interrupted).
@@ -169,35 +211,9 @@ pub fn run_fit(
             "the terms list only `const`: give at least one term to fit".into(),
         ));
     }
-    let file = std::fs::File::open(&request.data)
-        .map_err(|e| JobStop::Failed(format!("{}: {e}", request.data.display())))?;
-    let size = file.metadata().map(|m| m.len()).unwrap_or(0).max(1);
-    let read = Arc::new(AtomicU64::new(0));
-    let counting = CountingReader {
-        inner: file,
-        read: Arc::clone(&read),
-    };
-    let source = request.data.display().to_string();
-    let mut reader = RecordingReader::from_reader(counting, &source).map_err(|e| failed(&e))?;
-    let mut recording = Recording::with_schema(source.clone(), reader.schema().clone());
-    for (key, value) in reader.metadata().to_vec() {
-        recording.set_metadata(&key, &value);
-    }
-    let mut row = Vec::new();
-    let mut rows = 0u64;
     context.progress("reading the database", Some(0.0));
-    while reader.read_row(&mut row).map_err(|e| failed(&e))? {
-        recording.push_row(&row).map_err(|e| failed(&e))?;
-        rows += 1;
-        if rows.is_multiple_of(8192) {
-            context.check()?;
-            let fraction = read.load(Ordering::Relaxed) as f32 / size as f32;
-            context.progress(
-                &format!("reading the database ({rows} rows)"),
-                Some(0.8 * fraction.min(1.0)),
-            );
-        }
-    }
+    let recording = read_with_progress(&request.data, context, "reading the database", 0.0..0.8)?;
+    let rows = recording.len();
     context.check()?;
     context.progress(&format!("building the design ({rows} rows)"), Some(0.8));
     let design =

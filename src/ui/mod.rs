@@ -10,6 +10,8 @@
 //! - [`history`]: the in-memory decimation pyramid behind the Trends panel.
 //! - [`jobs`]: long work (fitting a model from a big database) on its own thread with progress
 //!   and cancel.
+//! - [`sim_vs_real`]: the Model lab's sim-vs-real discrepancy analysis as a job, and the
+//!   header read that offers the target columns both files share.
 //! - [`analysis`]: the warm-up checklist's friction fingerprint and backlash analyses and the
 //!   depth-of-cut recommendation, run as jobs on full-rate samples copied from the history.
 //! - [`export_png`]: the Trends plots drawn into a PNG without a window or GPU.
@@ -26,6 +28,7 @@ pub mod history;
 pub mod jobs;
 pub mod panels;
 pub mod session;
+pub mod sim_vs_real;
 pub mod state;
 pub mod vm;
 

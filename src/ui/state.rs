@@ -212,7 +212,8 @@ pub enum EventKind {
     Write,
     /// The recorder started, stopped or failed.
     Recorder,
-    /// A background job (model fit) started, finished, failed or was cancelled.
+    /// A background job (model fit, sim-vs-real analysis, warm-up analysis) started,
+    /// finished, failed or was cancelled.
     Job,
 }
 
@@ -415,7 +416,7 @@ pub struct JobProgress {
     pub fraction: Option<f32>,
 }
 
-/// The Model lab's state: the running fit, its last result.
+/// The Model lab's state: the running fit, its last result, and the sim-vs-real analysis.
 #[derive(Debug, Clone, Default)]
 pub struct ModelLabState {
     /// Progress of the running fit.
@@ -424,6 +425,23 @@ pub struct ModelLabState {
     pub result: Option<super::jobs::FitOutcome>,
     /// Why the last fit failed or stopped.
     pub error: Option<String>,
+    /// The sim-vs-real discrepancy analysis.
+    pub discrepancy: DiscrepancyState,
+}
+
+/// The Model lab's sim-vs-real part.
+#[derive(Debug, Clone, Default)]
+pub struct DiscrepancyState {
+    /// Progress of the running analysis.
+    pub running: Option<JobProgress>,
+    /// The last analysis.
+    pub result: Option<super::sim_vs_real::DiscrepancyOutcome>,
+    /// Why the last analysis failed or stopped (the library's message).
+    pub error: Option<String>,
+    /// The columns the chosen files share, once their headers were read.
+    pub columns: Option<super::sim_vs_real::SharedColumns>,
+    /// Why the headers could not be read.
+    pub columns_error: Option<String>,
 }
 
 /// A warm-up report the operator signed off, as saved.

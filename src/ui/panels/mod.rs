@@ -114,12 +114,26 @@ pub enum UiCommand {
     StartFit,
     /// Cancel the running fit.
     CancelFit,
+    /// Start the sim-vs-real analysis in the Model lab form.
+    StartDiscrepancy,
+    /// Cancel the running sim-vs-real analysis (the panel is free at once).
+    CancelDiscrepancy,
     /// Switch the recorder on or off.
     SetRecording(bool),
     /// Show or hide a kind of event.
     ToggleEventKind(EventKind),
     /// Show only warnings and faults.
     SetProblemsOnly(bool),
+}
+
+/// The Model lab's sections.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LabSection {
+    /// Fit a model from a database.
+    #[default]
+    Fit,
+    /// Sim-vs-real discrepancy of two recordings.
+    Discrepancy,
 }
 
 /// Text the operator is typing (UI-local widget state, never shared). Fields missing from a
@@ -157,6 +171,14 @@ pub struct Forms {
     pub fit_target: String,
     /// The Model lab's terms.
     pub fit_terms: String,
+    /// The Model lab's open section.
+    pub lab_section: LabSection,
+    /// The sim-vs-real simulation file.
+    pub disc_sim: String,
+    /// The sim-vs-real real recording.
+    pub disc_real: String,
+    /// The sim-vs-real compared column.
+    pub disc_target: String,
     /// The Events panel's text filter.
     #[serde(skip)]
     pub event_text: String,

@@ -1,11 +1,69 @@
-//! The Model lab panel.
+//! The Model lab panel: fitting a model from a database, and the sim-vs-real discrepancy
+//! analysis of two recordings (one section at a time, chosen at the top).
 
 use eframe::egui;
+use egui_plot::{Legend, Line, Plot, PlotPoints, Span};
 
-use super::{Forms, UiCommand, labelled_text};
+use super::{Forms, LabSection, UiCommand, labelled_text};
+use crate::ui::state::JobProgress;
+use crate::ui::vm::discrepancy::{DiscrepancyResultView, DiscrepancyView};
 use crate::ui::vm::model_lab::ModelLabView;
 
-/// Draws the Model lab.
+/// Draws the section chooser; the app then builds and draws the chosen section.
+pub fn section_ui(ui: &mut egui::Ui, forms: &mut Forms) {
+    ui.horizontal(|ui| {
+        for (section, label) in [
+            (LabSection::Fit, "Fit a model"),
+            (LabSection::Discrepancy, "Sim vs real"),
+        ] {
+            if ui
+                .selectable_label(forms.lab_section == section, label)
+                .clicked()
+            {
+                forms.lab_section = section;
+            }
+        }
+    });
+    ui.separator();
+}
+
+/// A job's progress bar with its Cancel button, or the start button.
+fn job_row(
+    ui: &mut egui::Ui,
+    running: Option<&JobProgress>,
+    start: (&str, UiCommand),
+    cancel: UiCommand,
+    commands: &mut Vec<UiCommand>,
+) {
+    ui.horizontal(|ui| match running {
+        Some(progress) => {
+            let bar = egui::ProgressBar::new(progress.fraction.unwrap_or(0.0))
+                .text(&progress.stage)
+                .desired_width(420.0)
+                .animate(true);
+            ui.add(bar);
+            if ui.button("Cancel").clicked() {
+                commands.push(cancel);
+            }
+        }
+        None => {
+            if ui.button(start.0).clicked() {
+                commands.push(start.1);
+            }
+        }
+    });
+}
+
+fn error_line(ui: &mut egui::Ui, error: Option<&String>) {
+    if let Some(error) = error {
+        ui.colored_label(
+            super::severity_color(crate::ui::state::Severity::Fault),
+            error,
+        );
+    }
+}
+
+/// Draws the fit section.
 pub fn model_lab_ui(
     ui: &mut egui::Ui,
     view: &ModelLabView,
@@ -28,29 +86,14 @@ pub fn model_lab_ui(
             labelled_text(ui, "Terms", &mut forms.fit_terms, 420.0);
             ui.end_row();
         });
-    ui.horizontal(|ui| match &view.running {
-        Some(progress) => {
-            let bar = egui::ProgressBar::new(progress.fraction.unwrap_or(0.0))
-                .text(&progress.stage)
-                .desired_width(360.0)
-                .animate(true);
-            ui.add(bar);
-            if ui.button("Cancel").clicked() {
-                commands.push(UiCommand::CancelFit);
-            }
-        }
-        None => {
-            if ui.button("Fit").clicked() {
-                commands.push(UiCommand::StartFit);
-            }
-        }
-    });
-    if let Some(error) = &view.error {
-        ui.colored_label(
-            super::severity_color(crate::ui::state::Severity::Fault),
-            error,
-        );
-    }
+    job_row(
+        ui,
+        view.running.as_ref(),
+        ("Fit", UiCommand::StartFit),
+        UiCommand::CancelFit,
+        commands,
+    );
+    error_line(ui, view.error.as_ref());
     let Some(fit) = &view.result else {
         return;
     };
@@ -96,4 +139,167 @@ pub fn model_lab_ui(
                 }
             });
     });
+}
+
+/// Draws the sim-vs-real section.
+pub fn discrepancy_ui(
+    ui: &mut egui::Ui,
+    view: &DiscrepancyView,
+    forms: &mut Forms,
+    commands: &mut Vec<UiCommand>,
+) {
+    ui.heading("Sim vs real: where the simulation misses, and which physics it left out");
+    ui.label(
+        "Residual real − sim on the compared column, mismatch regions, the missing physics \
+         named with fitted parameters, and the fit before and after (held out), as \
+         `servosight discrepancy` computes it.",
+    );
+    egui::Grid::new("discrepancy form")
+        .num_columns(2)
+        .spacing([8.0, 6.0])
+        .show(ui, |ui| {
+            labelled_text(ui, "Simulation (CSV v1)", &mut forms.disc_sim, 420.0);
+            ui.end_row();
+            labelled_text(ui, "Real recording (CSV v1)", &mut forms.disc_real, 420.0);
+            ui.end_row();
+            let label = ui.label("Compared column");
+            ui.horizontal(|ui| {
+                ui.add(egui::TextEdit::singleline(&mut forms.disc_target).desired_width(300.0))
+                    .labelled_by(label.id);
+                egui::ComboBox::from_id_salt("shared columns")
+                    .selected_text(if view.shared_columns.is_empty() {
+                        "no shared columns yet".to_string()
+                    } else {
+                        format!("{} shared columns", view.shared_columns.len())
+                    })
+                    .show_ui(ui, |ui| {
+                        for column in &view.shared_columns {
+                            ui.selectable_value(&mut forms.disc_target, column.clone(), column);
+                        }
+                    });
+            });
+            ui.end_row();
+        });
+    if let Some(error) = &view.columns_error {
+        ui.label(format!("cannot offer the shared columns: {error}"));
+    }
+    job_row(
+        ui,
+        view.running.as_ref(),
+        ("Analyse", UiCommand::StartDiscrepancy),
+        UiCommand::CancelDiscrepancy,
+        commands,
+    );
+    error_line(ui, view.error.as_ref());
+    let Some(result) = &view.result else {
+        return;
+    };
+    ui.separator();
+    egui::ScrollArea::vertical().show(ui, |ui| result_ui(ui, result));
+}
+
+fn result_ui(ui: &mut egui::Ui, r: &DiscrepancyResultView) {
+    let severity = if r.missing_physics {
+        crate::ui::state::Severity::Warning
+    } else {
+        crate::ui::state::Severity::Normal
+    };
+    ui.label(
+        egui::RichText::new(&r.verdict)
+            .strong()
+            .color(super::severity_color(severity)),
+    );
+    ui.label(format!("{} — sim {} vs real {}", r.target, r.sim, r.real));
+    ui.label(&r.alignment);
+    ui.label(&r.calibration);
+    egui::Grid::new("discrepancy quality")
+        .striped(true)
+        .num_columns(3)
+        .show(ui, |ui| {
+            for header in ["", "R²", "RMSE"] {
+                ui.label(egui::RichText::new(header).strong());
+            }
+            ui.end_row();
+            for row in &r.quality {
+                ui.label(&row.stage);
+                ui.monospace(&row.r2);
+                ui.monospace(&row.rmse);
+                ui.end_row();
+            }
+        });
+    ui.label(&r.noise_floor);
+    if !r.findings.is_empty() {
+        ui.heading("Missing physics, strongest first");
+    }
+    for f in &r.findings {
+        ui.label(
+            egui::RichText::new(format!(
+                "{}. {}   ΔR² {}, p {}",
+                f.rank, f.physics, f.delta_r2, f.p_value
+            ))
+            .strong(),
+        );
+        ui.label(&f.explanation);
+        let parameters: Vec<String> = f
+            .parameters
+            .iter()
+            .map(|p| format!("{} = {}", p.name, p.value))
+            .collect();
+        ui.monospace(parameters.join(";  "));
+        ui.label(format!("signals: {}", f.signals));
+        if let Some(note) = &f.indistinguishable {
+            ui.label(note);
+        }
+    }
+    for note in &r.notes {
+        ui.label(note);
+    }
+    let p = &r.plots;
+    let y_label = if p.unit.is_empty() {
+        "value".to_string()
+    } else {
+        format!("[{}]", p.unit)
+    };
+    ui.heading("Residual over time (mismatch regions shaded)");
+    Plot::new("discrepancy residual")
+        .height(220.0)
+        .legend(Legend::default())
+        .link_axis(egui::Id::unique("discrepancy time axis"), [true, false])
+        .x_axis_label("time [s]")
+        .y_axis_label(y_label.clone())
+        .show(ui, |plot_ui| {
+            let shade = egui::Color32::from_rgba_unmultiplied(0xe0, 0x9a, 0x00, 40);
+            for region in &p.regions {
+                plot_ui
+                    .span(Span::new("mismatch region", region.start_s..=region.end_s).fill(shade));
+            }
+            for (line, color) in [
+                (&p.residual, egui::Color32::from_rgb(0xd0, 0x30, 0x30)),
+                (&p.residual_after, egui::Color32::from_rgb(0x2e, 0xa0, 0x43)),
+            ] {
+                plot_ui.line(
+                    Line::new(line.label.clone(), PlotPoints::new(line.points.clone()))
+                        .color(color)
+                        .width(1.2),
+                );
+            }
+        });
+    for region in &p.regions {
+        ui.label(&region.text);
+    }
+    ui.heading("Before and after: real, sim, sim + corrections");
+    Plot::new("discrepancy overlay")
+        .height(240.0)
+        .legend(Legend::default())
+        .link_axis(egui::Id::unique("discrepancy time axis"), [true, false])
+        .x_axis_label("time [s]")
+        .y_axis_label(y_label)
+        .show(ui, |plot_ui| {
+            for line in &p.overlay {
+                plot_ui.line(
+                    Line::new(line.label.clone(), PlotPoints::new(line.points.clone())).width(1.2),
+                );
+            }
+        });
+    ui.label(&p.decimation);
 }

@@ -9,6 +9,7 @@
 
 pub mod compensation;
 pub mod depth;
+pub mod discrepancy;
 pub mod events;
 pub mod model_lab;
 pub mod overview;

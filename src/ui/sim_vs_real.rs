@@ -1,0 +1,227 @@
+//! The Model lab's sim-vs-real discrepancy job: read a simulation and a real recording, run
+//! [`crate::discrepancy::analyse`] on them, and put the plot-ready series into a small
+//! decimation pyramid (the same [`History`] the Trends panel draws from), all on the job's
+//! thread. Also the cheap companion job that reads the two files' headers so the panel can
+//! offer the columns they share as targets.
+//!
+//! `analyse` has no progress or cancel hook: the job reports the phases it can (reading the
+//! simulation, reading the real recording, analysing), stops between them when cancelled, and
+//! the app drops a cancelled job at once, so the panel is free while the analysis (a second or
+//! two for 100 k rows) finishes unseen and its result is discarded.
+
+use std::path::{Path, PathBuf};
+
+use super::history::{History, HistoryConfig};
+use super::jobs::{JobContext, JobStop, read_with_progress};
+use crate::discrepancy::{DiscrepancyReport, Options, analyse};
+use crate::signal::RecordingReader;
+use crate::signal::channel::TIME;
+
+/// What the Model lab asks the discrepancy analysis for.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DiscrepancyRequest {
+    /// The simulation (CSV v1).
+    pub sim: PathBuf,
+    /// The real recording (CSV v1).
+    pub real: PathBuf,
+    /// The column compared.
+    pub target: String,
+}
+
+/// The channels of [`DiscrepancyOutcome::plot`], in storage order.
+pub const PLOT_CHANNELS: [&str; 5] = [
+    "real",
+    "sim",
+    "corrected",
+    "residual_before",
+    "residual_after",
+];
+
+/// A finished analysis with its source.
+#[derive(Debug, Clone)]
+pub struct DiscrepancyOutcome {
+    /// What was asked.
+    pub request: DiscrepancyRequest,
+    /// The report (its `plot` holds the library's plot-ready series).
+    pub report: DiscrepancyReport,
+    /// The report's plot series ([`PLOT_CHANNELS`]) in a decimation pyramid, so each frame
+    /// draws a window of at most a few thousand points without touching the full series.
+    pub plot: History,
+}
+
+/// The plot series of `report` in a [`History`] that holds every point at full rate (the
+/// library already bins them to a few thousand) with one coarser level above.
+pub fn plot_history(report: &DiscrepancyReport) -> History {
+    let p = &report.plot;
+    let n = p.time_s.len();
+    let config = HistoryConfig {
+        raw_capacity: n.max(16),
+        factor: 8,
+        level_capacities: Vec::new(),
+    };
+    let mut history = History::new(
+        PLOT_CHANNELS.iter().map(|c| c.to_string()).collect(),
+        config,
+    );
+    let columns = [
+        &p.real,
+        &p.sim,
+        &p.corrected,
+        &p.residual_before,
+        &p.residual_after,
+    ];
+    let mut row = [0.0f64; PLOT_CHANNELS.len()];
+    for (i, &t) in p.time_s.iter().enumerate() {
+        for (value, column) in row.iter_mut().zip(columns) {
+            // A series shorter than the time axis would be a library bug; draw a gap.
+            *value = column.get(i).copied().unwrap_or(f64::NAN);
+        }
+        history.push(t, &row);
+    }
+    history
+}
+
+/// Reads both files and analyses them with the default [`Options`] (what the proof in
+/// `docs/discrepancy.md` ran), reporting the phases; the library's errors (target missing,
+/// no overlap in time, too short) come back as the job's failure, word for word.
+pub fn run_discrepancy(
+    request: DiscrepancyRequest,
+    context: &JobContext<DiscrepancyOutcome>,
+) -> Result<DiscrepancyOutcome, JobStop> {
+    if request.target.is_empty() {
+        return Err(JobStop::Failed("choose the column to compare".into()));
+    }
+    context.progress("reading the simulation", Some(0.0));
+    let sim = read_with_progress(&request.sim, context, "reading the simulation", 0.0..0.2)?;
+    context.progress("reading the real recording", Some(0.2));
+    let real = read_with_progress(
+        &request.real,
+        context,
+        "reading the real recording",
+        0.2..0.4,
+    )?;
+    context.progress(
+        &format!(
+            "analysing {} against {} rows (cannot report finer progress)",
+            real.len(),
+            sim.len()
+        ),
+        Some(0.4),
+    );
+    let report = analyse(&sim, &real, &request.target, &Options::default())
+        .map_err(|e| JobStop::Failed(e.to_string()))?;
+    context.check()?;
+    context.progress("preparing the plots", Some(0.95));
+    let plot = plot_history(&report);
+    Ok(DiscrepancyOutcome {
+        request,
+        report,
+        plot,
+    })
+}
+
+/// The columns two recordings share (besides `time_s`), in the real recording's order.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SharedColumns {
+    /// The simulation that was read.
+    pub sim: PathBuf,
+    /// The real recording that was read.
+    pub real: PathBuf,
+    /// What both have.
+    pub columns: Vec<String>,
+}
+
+/// Reads only the headers of both files (a few kilobytes) for the target choice.
+pub fn read_shared_columns(
+    sim: PathBuf,
+    real: PathBuf,
+    context: &JobContext<SharedColumns>,
+) -> Result<SharedColumns, JobStop> {
+    context.progress("reading the headers", None);
+    let header = |path: &Path| -> Result<Vec<String>, JobStop> {
+        RecordingReader::open(path)
+            .map(|reader| reader.schema().names().to_vec())
+            .map_err(|e| JobStop::Failed(e.to_string()))
+    };
+    let in_sim = header(&sim)?;
+    context.check()?;
+    let in_real = header(&real)?;
+    let columns = in_real
+        .into_iter()
+        .filter(|c| c != TIME && in_sim.contains(c))
+        .collect();
+    Ok(SharedColumns { sim, real, columns })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::discrepancy::PlotData;
+
+    #[test]
+    fn the_plot_pyramid_keeps_every_series_and_decimates_on_request() {
+        let n = 1000;
+        let time_s: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let ramp: Vec<f64> = time_s.iter().map(|t| t * 0.5).collect();
+        let mut report = crate::discrepancy::DiscrepancyReport {
+            target: "S.stator_temp_C".into(),
+            rows: n,
+            verdict: crate::discrepancy::Verdict::Consistent,
+            baseline: crate::discrepancy::FitQuality { r2: 1.0, rmse: 0.0 },
+            improved: crate::discrepancy::FitQuality { r2: 1.0, rmse: 0.0 },
+            calibrated: crate::discrepancy::FitQuality { r2: 1.0, rmse: 0.0 },
+            mismatch_regions: Vec::new(),
+            agreement_regions: Vec::new(),
+            findings: Vec::new(),
+            calibration: crate::discrepancy::Calibration {
+                offset: 0.0,
+                gain: 1.0,
+                gain_absorbed: false,
+                explanation: String::new(),
+            },
+            noise_floor: crate::discrepancy::NoiseFloor {
+                rms: 0.0,
+                correlation_time_s: 1.0,
+                window_s: 1.0,
+            },
+            alignment: crate::discrepancy::Alignment {
+                resampled: false,
+                note: String::new(),
+                start_s: 0.0,
+                end_s: 999.0,
+            },
+            not_tested: Vec::new(),
+            method: crate::discrepancy::Method {
+                folds: 2,
+                surrogates: 1,
+                alpha: 0.01,
+                selection_rows: n,
+                candidates: 0,
+                steps: Vec::new(),
+            },
+            plot: PlotData::default(),
+        };
+        report.plot = PlotData {
+            target: report.target.clone(),
+            time_s: time_s.clone(),
+            real: ramp.clone(),
+            sim: vec![0.0; n],
+            corrected: ramp.clone(),
+            residual_before: ramp.clone(),
+            residual_after: vec![0.0; n],
+            regions: Vec::new(),
+        };
+        let history = plot_history(&report);
+        assert_eq!(history.channels().len(), PLOT_CHANNELS.len());
+        let all: Vec<usize> = (0..PLOT_CHANNELS.len()).collect();
+        let full = history.window(&all, 0.0, 999.0, 2000);
+        assert_eq!(full.len(), n, "every point when the budget allows");
+        assert_eq!(full.series[0].mean[10], 5.0);
+        let coarse = history.window(&all, 0.0, 999.0, 50);
+        assert!(coarse.len() <= 50 && coarse.len() >= 25, "{}", coarse.len());
+        // Bucket means of a ramp stay on the ramp.
+        for (t, v) in coarse.time_s.iter().zip(&coarse.series[3].mean) {
+            assert!((f64::from(*v) - 0.5 * t).abs() < 1.0, "{t} {v}");
+        }
+    }
+}
