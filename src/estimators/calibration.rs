@@ -15,6 +15,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::discrepancy::series::rms;
 use crate::fit::autocorrelation::mean_above_zero;
 use crate::fit::{Design, FitError, OlsFit, blocked_cross_validation, ols};
 use crate::profile::{AxisKind, MachineProfile};
@@ -219,11 +220,6 @@ fn held_out_errors(blocks: &[(&[f64], &[f64])], form: CorrectionForm) -> Option<
         errors.extend(p.iter().zip(m).map(|(p, m)| m - offset - gain * p));
     }
     Some(errors)
-}
-
-/// Root mean square.
-fn rms(values: &[f64]) -> f64 {
-    (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
 }
 
 /// The calibration report.
