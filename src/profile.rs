@@ -147,7 +147,8 @@ pub struct AxisLimits {
     pub bearing_temp_C: Threshold,
     /// Nut temperature warning / fault, °C.
     pub nut_temp_C: Threshold,
-    /// Motor abnormality score warning / fault (residual torque in noise standard deviations).
+    /// Motor abnormality warning / fault: excess friction torque, % of the healthy ideal
+    /// friction torque (either way).
     pub abnormality: Threshold,
     /// Relative preload drop that counts as preload loss (e.g. 0.25 = 25 %).
     pub preload_loss_fraction: f64,
@@ -326,9 +327,12 @@ impl MachineProfile {
                 warning: 45.0,
                 fault: 60.0,
             },
+            // A feed axis's friction is mostly the nut's preload drag and the guides, so a
+            // bearing's friction doubling moves the total by well under 10 %; its healthy
+            // model scatters by well under 1 % (docs/accuracy.md).
             abnormality: Threshold {
                 warning: 4.0,
-                fault: 8.0,
+                fault: 12.0,
             },
             preload_loss_fraction: 0.25,
             friction_rise_fraction: 0.25,
@@ -384,6 +388,11 @@ impl MachineProfile {
                         warning: 40.0,
                         fault: 60.0,
                     }),
+                    // The spindle's healthy model scatters by ≈ 1.5 % (docs/accuracy.md).
+                    abnormality: Threshold {
+                        warning: 8.0,
+                        fault: 25.0,
+                    },
                     ..feed_limits
                 },
             },

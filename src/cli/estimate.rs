@@ -1,8 +1,10 @@
 //! `servosight estimate`: run every estimator over a recording; score against references.
+#![allow(non_snake_case)] // unit suffixes are part of the JSON field names
 
 use std::path::PathBuf;
 
 use anyhow::Context;
+use servosight::estimators::abnormality::{AbnormalityState, judge};
 use servosight::estimators::accuracy::{AccuracyRow, accuracy, run as run_estimators};
 use servosight::profile::MachineProfile;
 use servosight::signal::{Recording, read_recording, write_recording};
@@ -29,6 +31,22 @@ pub struct Args {
 struct Report {
     rows: usize,
     accuracy: Vec<AccuracyRow>,
+    abnormality: Vec<AbnormalityRow>,
+    notes: Vec<String>,
+}
+
+/// One axis's motor abnormality score at the end of the recording.
+#[derive(Debug, serde::Serialize)]
+struct AbnormalityRow {
+    axis: String,
+    state: AbnormalityState,
+    /// `null` until the score is trustworthy.
+    excess_pct: Option<f64>,
+    standard_error_pct: Option<f64>,
+    excess_Nm: Option<f64>,
+    ideal_Nm: Option<f64>,
+    steady_blocks: u64,
+    reason: String,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -36,6 +54,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let recording = read_recording(&args.recording).context("cannot read recording")?;
     let series = run_estimators(&profile, &recording)?;
     let rows = accuracy(&series, &recording);
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let abnormality: Vec<AbnormalityRow> = series
+        .abnormality
+        .iter()
+        .map(|(axis, score)| {
+            let levels = profile
+                .axis(*axis)
+                .map(|a| a.limits.abnormality)
+                .context("abnormality score of an axis the profile does not have")?;
+            let (state, reason) = judge(score, levels);
+            Ok(AbnormalityRow {
+                axis: axis.to_string(),
+                state,
+                excess_pct: finite(score.excess_pct),
+                standard_error_pct: finite(score.standard_error_pct),
+                excess_Nm: finite(score.excess_Nm),
+                ideal_Nm: finite(score.ideal_Nm),
+                steady_blocks: score.steady_blocks,
+                reason,
+            })
+        })
+        .collect::<anyhow::Result<_>>()?;
     if let Some(path) = &args.output {
         let mut names = vec!["time_s".to_string()];
         names.extend(series.outputs.iter().map(|o| o.column.clone()));
@@ -81,12 +121,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "R² true: against the noise-free reference, with the reference's white noise (ref σ) estimated from its sample-to-sample differences"
         );
     }
+    for row in &abnormality {
+        println!(
+            "motor abnormality {}: {} — {}",
+            row.axis,
+            row.state.label(),
+            row.reason
+        );
+    }
+    for note in &series.notes {
+        println!("note: {note}");
+    }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(
             path,
             &Report {
                 rows: recording.len(),
                 accuracy: rows,
+                abnormality,
+                notes: series.notes.clone(),
             },
         )?;
     }

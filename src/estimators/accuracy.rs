@@ -2,7 +2,9 @@
 //! reference column, like the paper's Table 3.
 
 use crate::profile::MachineProfile;
-use crate::signal::Recording;
+use crate::signal::{AxisId, Recording};
+
+use super::abnormality::AbnormalityScore;
 
 use super::pipeline::{EstimateOutput, EstimatorPipeline, PipelineError};
 
@@ -13,6 +15,10 @@ pub struct EstimateSeries {
     pub outputs: Vec<EstimateOutput>,
     /// One vector per output, one value per recording row.
     pub values: Vec<Vec<f64>>,
+    /// Each axis's motor abnormality score at the end of the recording.
+    pub abnormality: Vec<(AxisId, AbnormalityScore)>,
+    /// What could not be estimated, and why.
+    pub notes: Vec<String>,
 }
 
 /// Runs the profile's pipeline over every row of `recording`.
@@ -35,7 +41,12 @@ pub fn run(
             column.push(v);
         }
     }
-    Ok(EstimateSeries { outputs, values })
+    Ok(EstimateSeries {
+        outputs,
+        values,
+        abnormality: pipeline.abnormality_scores(),
+        notes: pipeline.notes().to_vec(),
+    })
 }
 
 /// Accuracy of one estimate against its reference (DESIGN.md's contract).

@@ -22,7 +22,11 @@ use crate::profile::{AxisKind, MachineProfile};
 use crate::signal::channel::AMBIENT;
 use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 
-use super::models::{AxisModels, Calibration, ElongationModel, HeatModel, LinearModel};
+use super::abnormality;
+use super::models::{
+    AbnormalityModel, AxisModels, Calibration, ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES,
+    LinearModel,
+};
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{HeatAccumulator, StraightnessInputs, TorqueSplitEstimator};
 
@@ -406,7 +410,73 @@ pub fn calibrate(
         experiments,
         Stage::Straightness,
     )?;
+
+    // The healthy ideal torque for the abnormality score, on the database and the machine's
+    // own (healthy) experiments together.
+    for (&axis, axis_profile) in &profile.axes {
+        let stroke_mm = axis_profile.screw.as_ref().map(|s| s.stroke_mm);
+        if let Some((model, model_report)) =
+            fit_abnormality(axis, stroke_mm, database, experiments, has_ambient)?
+        {
+            calibration.axes.entry(axis).or_default().abnormality = Some(model);
+            report.models.push(model_report);
+        }
+    }
     Ok((calibration, report))
+}
+
+/// Steady blocks needed before an ideal-torque model is fitted.
+const MIN_STEADY_BLOCKS: usize = 100;
+
+/// The ideal torque of a healthy, steadily running axis (see [`super::abnormality`]); `None`
+/// when the recordings lack the depth of cut or hold too little steady running.
+fn fit_abnormality(
+    axis: AxisId,
+    stroke_mm: Option<f64>,
+    database: &[Recording],
+    experiments: &[Recording],
+    has_ambient: bool,
+) -> Result<Option<(AbnormalityModel, ModelReport)>, CalibrationError> {
+    let mut blocks = Vec::new();
+    let tagged = (database.iter().map(|r| (r, false))).chain(experiments.iter().map(|r| (r, true)));
+    for (recording, is_experiment) in tagged {
+        let Some(samples) = abnormality::recording_samples(recording, axis, stroke_mm) else {
+            // The database must cover the model; an experiment without the columns adds nothing.
+            if is_experiment {
+                continue;
+            }
+            return Ok(None);
+        };
+        blocks.extend(abnormality::steady_blocks(samples));
+    }
+    if blocks.len() < MIN_STEADY_BLOCKS {
+        return Ok(None);
+    }
+    let has_position = blocks.iter().all(|b| b.mean.stroke_fraction.is_finite());
+    let features: Vec<_> = blocks
+        .iter()
+        .map(|b| abnormality::ideal_torque_features(&b.mean))
+        .collect();
+    let columns: Vec<(String, Vec<f64>)> =
+        abnormality::ideal_torque_terms(has_ambient, has_position)
+            .into_iter()
+            .filter_map(|term| {
+                let index = IDEAL_TORQUE_FEATURES.iter().position(|f| *f == term)?;
+                let values: Vec<f64> = features.iter().map(|f| f[index]).collect();
+                // A direction that never changes (a spindle) is the constant again.
+                let varies = values.iter().any(|v| (v - values[0]).abs() > 1e-12);
+                varies.then(|| (term.to_string(), values))
+            })
+            .collect();
+    let y: Vec<f64> = blocks.iter().map(|b| b.mean.torque_Nm).collect();
+    let estimate = format!("{axis}.motor_abnormality");
+    let fitted = fit_columns(&estimate, "τ_ideal", "motor torque", y, columns)?;
+    Ok(Some((
+        AbnormalityModel {
+            ideal_torque: fitted.model,
+        },
+        fitted.report,
+    )))
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

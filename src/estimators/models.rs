@@ -61,8 +61,24 @@ pub const ELONGATION_FEATURES: &[&str] = &[
     "load_heat_slow",
     "ambient",
 ];
-/// Ideal motor torque from motion (abnormality): constant, acceleration, speed, direction.
-pub const IDEAL_TORQUE_FEATURES: &[&str] = &["const", "acceleration", "speed", "direction"];
+/// Ideal (friction) torque of a steadily running axis, for the abnormality score (see
+/// [`super::abnormality`]): constant, direction, speed, the churning term direction·|n|^(2/3)
+/// and it times the stator's rise over the room (and its square) or, without a room
+/// temperature, times the stator temperature, and position terms along the stroke. A fitted
+/// model uses a subset.
+pub const IDEAL_TORQUE_FEATURES: &[&str] = &[
+    "const",
+    "direction",
+    "speed",
+    "churning",
+    "churning*rise",
+    "churning*rise^2",
+    "churning*ambient",
+    "churning*stator",
+    "churning*stator^2",
+    "direction*position",
+    "direction*position^2",
+];
 
 /// A linear model over named terms.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -113,6 +129,15 @@ pub struct ElongationModel {
     pub model: LinearModel,
 }
 
+/// The motor abnormality model: the healthy axis's ideal torque when running steadily.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AbnormalityModel {
+    /// The ideal torque over `IDEAL_TORQUE_FEATURES`, fitted on steady non-cutting blocks; its
+    /// `rmse` is the block-to-block scatter the score's standard error is built from.
+    pub ideal_torque: LinearModel,
+}
+
 /// Every fitted model of one axis.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -144,9 +169,9 @@ pub struct AxisModels {
     /// Spindle thermal elongation (Eq. 15).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub elongation: Option<ElongationModel>,
-    /// Ideal torque from motion, for the abnormality score.
+    /// Ideal torque of the healthy axis, for the abnormality score.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub ideal_torque: Option<LinearModel>,
+    pub abnormality: Option<AbnormalityModel>,
 }
 
 /// The fitted part of a machine profile.
@@ -220,8 +245,18 @@ impl Calibration {
                 }
                 check(p("elongation"), &e.model, ELONGATION_FEATURES)?;
             }
-            if let Some(model) = &m.ideal_torque {
-                check(p("ideal_torque"), model, IDEAL_TORQUE_FEATURES)?;
+            if let Some(a) = &m.abnormality {
+                if !(a.ideal_torque.rmse.is_finite() && a.ideal_torque.rmse >= 0.0) {
+                    return Err((
+                        p("abnormality"),
+                        "rmse must be a non-negative number".into(),
+                    ));
+                }
+                check(
+                    p("abnormality.ideal_torque"),
+                    &a.ideal_torque,
+                    IDEAL_TORQUE_FEATURES,
+                )?;
             }
         }
         Ok(())

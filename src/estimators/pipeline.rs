@@ -3,9 +3,10 @@
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use crate::profile::{AxisKind, MachineProfile};
-use crate::signal::channel::AMBIENT;
+use crate::signal::channel::{AMBIENT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 
+use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
 use super::models::AxisModels;
 use super::streaming::{
     ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, SpindleElongationEstimator,
@@ -60,6 +61,8 @@ pub struct FeedAxisEstimate {
     pub nodes: usize,
     /// Positions of the nodes along the stroke, mm.
     pub node_positions_mm: [f64; MAX_NODES],
+    /// Motor abnormality score.
+    pub abnormality: AbnormalityScore,
 }
 
 impl FeedAxisEstimate {
@@ -101,6 +104,7 @@ impl Default for FeedAxisEstimate {
             straightness_v_um: [f64::NAN; MAX_NODES],
             nodes: 0,
             node_positions_mm: [f64::NAN; MAX_NODES],
+            abnormality: AbnormalityScore::default(),
         }
     }
 }
@@ -110,6 +114,8 @@ impl Default for FeedAxisEstimate {
 pub struct SpindleEstimate {
     /// Thermal elongation since the tool calibration, µm.
     pub elongation_um: f64,
+    /// Motor abnormality score.
+    pub abnormality: AbnormalityScore,
 }
 
 /// Where an axis's servo signals are in the frame.
@@ -152,6 +158,8 @@ struct FeedAxisPipeline {
     nut: Option<ComponentThermalEstimator>,
     straightness_h: Option<StraightnessEstimator>,
     straightness_v: Option<StraightnessEstimator>,
+    abnormality: Option<MotorAbnormalityEstimator>,
+    stroke_mm: f64,
     /// What the straightness models read this frame (kept for calibration).
     thermal_state: StraightnessInputs,
     estimate: FeedAxisEstimate,
@@ -160,7 +168,8 @@ struct FeedAxisPipeline {
 struct SpindlePipeline {
     axis: AxisId,
     channels: AxisChannels,
-    elongation: SpindleElongationEstimator,
+    elongation: Option<SpindleElongationEstimator>,
+    abnormality: Option<MotorAbnormalityEstimator>,
     estimate: SpindleEstimate,
 }
 
@@ -169,7 +178,9 @@ pub struct EstimatorPipeline {
     feed: Vec<FeedAxisPipeline>,
     spindles: Vec<SpindlePipeline>,
     ambient: Option<usize>,
+    cut_depth: Option<usize>,
     previous_time: Option<f64>,
+    notes: Vec<String>,
 }
 
 impl EstimatorPipeline {
@@ -180,6 +191,8 @@ impl EstimatorPipeline {
             .as_ref()
             .ok_or_else(|| PipelineError::NotCalibrated(profile.name.clone()))?;
         let ambient = schema.index_of(AMBIENT);
+        let cut_depth = schema.index_of(CUT_DEPTH);
+        let mut notes = Vec::new();
         let mut feed = Vec::new();
         let mut spindles = Vec::new();
         for (&axis, axis_profile) in &profile.axes {
@@ -201,6 +214,23 @@ impl EstimatorPipeline {
                     what,
                     message,
                 }
+            };
+            let abnormality = match (&models.abnormality, cut_depth) {
+                (Some(model), Some(_)) => Some(
+                    MotorAbnormalityEstimator::new(
+                        model,
+                        axis_profile.limits.abnormality.warning / 4.0,
+                    )
+                    .map_err(model_err("abnormality"))?,
+                ),
+                (Some(_), None) => {
+                    notes.push(format!(
+                        "{axis}: no abnormality score: the frames have no `{CUT_DEPTH}` column, \
+                         and without it cutting torque would be scored as friction"
+                    ));
+                    None
+                }
+                (None, _) => None,
             };
             match axis_profile.kind {
                 AxisKind::Feed => {
@@ -253,6 +283,11 @@ impl EstimatorPipeline {
                             &models.straightness_v,
                             "vertical straightness",
                         )?,
+                        abnormality,
+                        stroke_mm: axis_profile
+                            .screw
+                            .as_ref()
+                            .map_or(f64::NAN, |s| s.stroke_mm),
                         thermal_state: StraightnessInputs::default(),
                         estimate: {
                             let mut estimate = FeedAxisEstimate::default();
@@ -264,14 +299,22 @@ impl EstimatorPipeline {
                     });
                 }
                 AxisKind::Spindle => {
-                    if let Some(model) = &models.elongation {
+                    let elongation = models
+                        .elongation
+                        .as_ref()
+                        .map(|m| {
+                            SpindleElongationEstimator::new(m).map_err(model_err("elongation"))
+                        })
+                        .transpose()?;
+                    if elongation.is_some() || abnormality.is_some() {
                         spindles.push(SpindlePipeline {
                             axis,
                             channels,
-                            elongation: SpindleElongationEstimator::new(model)
-                                .map_err(model_err("elongation"))?,
+                            elongation,
+                            abnormality,
                             estimate: SpindleEstimate {
                                 elongation_um: f64::NAN,
+                                abnormality: AbnormalityScore::default(),
                             },
                         });
                     }
@@ -282,8 +325,30 @@ impl EstimatorPipeline {
             feed,
             spindles,
             ambient,
+            cut_depth,
             previous_time: None,
+            notes,
         })
+    }
+
+    /// The abnormality score of every axis that has one.
+    pub fn abnormality_scores(&self) -> Vec<(AxisId, AbnormalityScore)> {
+        let feed = self
+            .feed
+            .iter()
+            .filter(|a| a.abnormality.is_some())
+            .map(|a| (a.axis, a.estimate.abnormality));
+        let spindles = self
+            .spindles
+            .iter()
+            .filter(|s| s.abnormality.is_some())
+            .map(|s| (s.axis, s.estimate.abnormality));
+        feed.chain(spindles).collect()
+    }
+
+    /// What the pipeline could not estimate from these frames, and why.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
     }
 
     /// Updates every estimator with one frame (column 0 is `time_s`).
@@ -292,9 +357,23 @@ impl EstimatorPipeline {
         let dt = self.previous_time.map_or(0.0, |p| (t - p).max(0.0));
         self.previous_time = Some(t);
         let ambient = self.ambient.map_or(f64::NAN, |i| frame[i]);
+        let cutting = self.cut_depth.is_some_and(|i| frame[i] > 0.0);
+        let sample = |c: &AxisChannels, stroke_fraction: f64| TorqueSample {
+            time_s: t,
+            speed_rpm: frame[c.speed],
+            torque_Nm: frame[c.torque],
+            stator_C: frame[c.stator],
+            ambient_C: ambient,
+            stroke_fraction,
+            cutting,
+        };
         for axis in &mut self.feed {
             let c = axis.channels;
             let (torque, stator) = (frame[c.torque], frame[c.stator]);
+            if let Some(abnormality) = &mut axis.abnormality {
+                let x = c.position.map_or(f64::NAN, |i| frame[i] / axis.stroke_mm);
+                axis.estimate.abnormality = abnormality.update(&sample(&c, x));
+            }
             let speed = axis
                 .travel
                 .update(c.position.map(|i| frame[i]), frame[c.speed], dt);
@@ -349,10 +428,13 @@ impl EstimatorPipeline {
         for spindle in &mut self.spindles {
             let c = spindle.channels;
             let load = c.load.map_or(0.0, |i| frame[i]);
-            spindle.estimate.elongation_um =
-                spindle
-                    .elongation
-                    .update(frame[c.stator], frame[c.speed], load, ambient, dt);
+            if let Some(elongation) = &mut spindle.elongation {
+                spindle.estimate.elongation_um =
+                    elongation.update(frame[c.stator], frame[c.speed], load, ambient, dt);
+            }
+            if let Some(abnormality) = &mut spindle.abnormality {
+                spindle.estimate.abnormality = abnormality.update(&sample(&c, f64::NAN));
+            }
         }
     }
 
@@ -384,7 +466,9 @@ impl EstimatorPipeline {
     /// The operator measured the tool: spindle elongation counts from the next frame.
     pub fn reset_tool_calibration(&mut self) {
         for spindle in &mut self.spindles {
-            spindle.elongation.reset_tool_calibration();
+            if let Some(elongation) = &mut spindle.elongation {
+                elongation.reset_tool_calibration();
+            }
         }
     }
 
@@ -458,14 +542,22 @@ impl EstimatorPipeline {
                     );
                 }
             }
+            if axis.abnormality.is_some() {
+                out.push(abnormality_output(a));
+            }
         }
         for spindle in &self.spindles {
             let a = spindle.axis;
-            out.push(EstimateOutput {
-                id: "spindle_elongation".into(),
-                column: format!("est.{a}.elongation_um"),
-                reference: reference_column(a, "elongation_um", None),
-            });
+            if spindle.elongation.is_some() {
+                out.push(EstimateOutput {
+                    id: "spindle_elongation".into(),
+                    column: format!("est.{a}.elongation_um"),
+                    reference: reference_column(a, "elongation_um", None),
+                });
+            }
+            if spindle.abnormality.is_some() {
+                out.push(abnormality_output(a));
+            }
         }
         out
     }
@@ -511,10 +603,27 @@ impl EstimatorPipeline {
                     out.push(zone);
                 }
             }
+            if axis.abnormality.is_some() {
+                out.push(e.abnormality.excess_pct);
+            }
         }
         for spindle in &self.spindles {
-            out.push(spindle.estimate.elongation_um);
+            if spindle.elongation.is_some() {
+                out.push(spindle.estimate.elongation_um);
+            }
+            if spindle.abnormality.is_some() {
+                out.push(spindle.estimate.abnormality.excess_pct);
+            }
         }
+    }
+}
+
+/// The abnormality score's output: no reference instrument measures it.
+fn abnormality_output(axis: AxisId) -> EstimateOutput {
+    EstimateOutput {
+        id: "motor_abnormality".into(),
+        column: format!("est.{axis}.abnormality_pct"),
+        reference: String::new(),
     }
 }
 
@@ -575,4 +684,8 @@ fn uses_ambient(models: &AxisModels) -> bool {
             .chain(&models.straightness_v)
             .any(uses)
         || models.elongation.as_ref().is_some_and(|e| uses(&e.model))
+        || models
+            .abnormality
+            .as_ref()
+            .is_some_and(MotorAbnormalityEstimator::uses_ambient)
 }
