@@ -2,7 +2,8 @@
 //!
 //! The machine: three feed axes (X, Y, Z) with every feed-axis estimator (motor flange, torque
 //! split, front/back bearing and nut heat and temperature, straightness at 5 nodes H and V with
-//! the ISO 1101 zone), a spindle S with thermal elongation, and a rotary C axis in the frame.
+//! the ISO 1101 zone and the motor abnormality score), a spindle S with thermal elongation and
+//! the abnormality score, and a rotary C axis in the frame.
 //! Models come from a real calibration on twin data, copied to Y and Z.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -23,7 +24,7 @@ fn five_axis_setup() -> (MachineProfile, Schema, Vec<Vec<f64>>) {
         profile.axes.insert(axis, x_profile);
     }
     profile.calibration = Some(calibration);
-    // A 5-axis frame layout: X, Y, Z, S, C servo columns plus the room.
+    // A 5-axis frame layout: X, Y, Z, S, C servo columns plus the room and the depth of cut.
     let source: Recording =
         simulate(TwinConfig::new(ScenarioKind::Production, Some(2.0), 4)).expect("twin runs");
     let mut names = vec!["time_s".to_string()];
@@ -42,13 +43,14 @@ fn five_axis_setup() -> (MachineProfile, Schema, Vec<Vec<f64>>) {
         }
     }
     names.push("ambient_C".into());
+    names.push("cut_depth_mm".into());
     let schema = Schema::new(names.clone(), "bench").expect("valid names");
     let frames = (0..source.len())
         .map(|i| {
             names
                 .iter()
                 .map(|name| {
-                    let from = if name == "time_s" || name == "ambient_C" {
+                    let from = if name == "time_s" || name == "ambient_C" || name == "cut_depth_mm" {
                         name.clone()
                     } else {
                         // Y, Z and C replay X's and S's signals.

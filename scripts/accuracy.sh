@@ -35,3 +35,33 @@ awk -F'\t' '{ n++; t[n]=$1; f[n]=$3; s+=$1 } END {
     m = s / n; for (i = 1; i <= n; i++) { sse += (t[i]-f[i])^2; sst += (t[i]-m)^2;
     e = t[i]-f[i]; if (e < 0) e = -e; if (e > worst) worst = e }
     printf "backlash R² %.4f, RMSE %.2f µm, worst error %.2f µm over %d runs\n", 1 - sse/sst, sqrt(sse/n), worst, n }' "$out/backlash.tsv"
+
+echo
+echo "motor abnormality: run, injected change, axis, state, excess friction % ± standard error"
+: > "$out/abnormality.tsv"
+abnormality() { # name, scenario, hours, seed, injected change ("-" for none)
+    local name=$1 scenario=$2 hours=$3 seed=$4 change=$5 set=()
+    [ "$change" != "-" ] && set=(--set "$change")
+    $S simulate --scenario "$scenario" --hours "$hours" --seed "$seed" "${set[@]}" \
+        -o "$out/abn.csv" 2> /dev/null
+    $S estimate --profile "$out/profile.toml" --recording "$out/abn.csv" --json "$out/abn.json" > /dev/null
+    python3 - "$name" "$change" "$out/abn.json" <<'PY' | tee -a "$out/abnormality.tsv"
+import json, sys
+name, change, path = sys.argv[1:4]
+for row in json.load(open(path))["abnormality"]:
+    pct, se = row["excess_pct"], row["standard_error_pct"]
+    shown = "—" if pct is None else f"{pct:+.1f} ± {se:.1f}"
+    print(f"{name}\t{change}\t{row['axis']}\t{row['state']}\t{shown}")
+PY
+}
+for seed in 7 41 42 43; do abnormality "production seed $seed" production 8 "$seed" -; done
+for seed in 51 52 53; do abnormality "warm-up seed $seed" warmup 0.75 "$seed" -; done
+abnormality "production seed 44" production 8 44 spindle.front_bearing.f0=1.6
+abnormality "production seed 45" production 8 45 spindle.front_bearing.f0=2.4
+abnormality "production seed 46" production 8 46 spindle.rear_bearing.f0=2.0
+abnormality "warm-up seed 54" warmup 0.75 54 spindle.front_bearing.f0=1.6
+abnormality "production seed 47" production 8 47 x_axis.front_bearing.f0=8
+abnormality "production seed 48" production 8 48 x_axis.back_bearing.f0=6
+abnormality "production seed 49" production 8 49 x_axis.nut_preload_N=900
+abnormality "production seed 50" production 8 50 x_axis.nut_preload_N=2250
+abnormality "warm-up seed 55" warmup 0.75 55 x_axis.front_bearing.f0=8

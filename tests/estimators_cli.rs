@@ -205,6 +205,74 @@ fn calibrate_then_estimate_end_to_end() {
     let est = read_recording(&estimates).unwrap();
     assert_eq!(est.len(), 5 * 3600 + 1);
     assert!(est.try_column("est.X.straightness_h_zone_um").is_some());
+    // Unknown until enough steady running: written as 0 with a validity column.
+    let valid = est.try_column("est.S.abnormality_pct_valid").unwrap();
+    assert_eq!(valid[0], 0.0);
+    assert_eq!(*valid.last().unwrap(), 1.0);
+    for axis in ["X", "S"] {
+        assert!(
+            models
+                .iter()
+                .any(|m| m["estimate"] == format!("{axis}.motor_abnormality"))
+        );
+    }
+
+    // Motor abnormality: the healthy validation day stays normal; the same day with a spindle
+    // bearing whose friction coefficient doubled and an X nut that lost 40 % of its preload is
+    // flagged on both axes, each in the right direction.
+    let faulty = simulate(
+        dir.path(),
+        "faulty.csv",
+        &[
+            "--scenario",
+            "production",
+            "--hours",
+            "5",
+            "--seed",
+            "7",
+            "--set",
+            "spindle.front_bearing.f0=1.6",
+            "--set",
+            "x_axis.nut_preload_N=900",
+        ],
+    );
+    let abnormality = |recording: &std::path::Path| {
+        let json = dir.path().join("abnormality.json");
+        let run = servosight(&[
+            "estimate",
+            "--profile",
+            arg(&profile),
+            "--recording",
+            arg(recording),
+            "--json",
+            arg(&json),
+        ]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let rows = report["abnormality"].as_array().unwrap().clone();
+        move |axis: &str| {
+            let row = rows
+                .iter()
+                .find(|r| r["axis"] == axis)
+                .unwrap_or_else(|| panic!("no abnormality row for {axis}"))
+                .clone();
+            (
+                row["state"].as_str().unwrap().to_string(),
+                row["excess_pct"].as_f64().unwrap(),
+            )
+        }
+    };
+    let healthy = abnormality(&val);
+    for axis in ["X", "S"] {
+        let (state, pct) = healthy(axis);
+        assert_eq!(state, "normal", "healthy {axis}: {pct} %");
+    }
+    let faulty = abnormality(&faulty);
+    let (state, pct) = faulty("S");
+    assert!(state != "normal" && pct > 10.0, "spindle {state} {pct} %");
+    let (state, pct) = faulty("X");
+    assert!(state != "normal" && pct < -10.0, "X {state} {pct} %");
 }
 
 #[test]
@@ -403,6 +471,7 @@ fn shipped_twin_profile_binds_to_twin_frames() {
     assert!(
         outputs.iter().any(|o| o.id == "nut_temp")
             && outputs.iter().any(|o| o.id == "spindle_elongation")
+            && outputs.iter().any(|o| o.id == "motor_abnormality")
     );
     let mut twin = twin;
     let mut row = Vec::new();

@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use servosight::estimators::abnormality::{AbnormalityState, judge};
-use servosight::estimators::accuracy::{AccuracyRow, accuracy, run as run_estimators};
+use servosight::estimators::accuracy::{
+    AccuracyRow, EstimateSeries, accuracy, run as run_estimators,
+};
 use servosight::profile::MachineProfile;
 use servosight::signal::{Recording, read_recording, write_recording};
 
@@ -18,7 +20,8 @@ pub struct Args {
     /// The recording to estimate over.
     #[arg(long)]
     pub recording: PathBuf,
-    /// Write the estimates (time plus one column per estimate) to this CSV.
+    /// Write the estimates (time plus one column per estimate) to this CSV. An estimate that is
+    /// not known in every row is 0 where unknown and has a `<column>_valid` 0/1 column.
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
     /// Write `{rows, accuracy: [...]}` as JSON to this file ("-" for stdout).
@@ -49,6 +52,47 @@ struct AbnormalityRow {
     reason: String,
 }
 
+/// Writes the estimates as a recording. The format has no empty cells, so an estimate that is
+/// not known in every row (the abnormality score before enough steady running) is written as
+/// 0 where unknown, next to a `<column>_valid` column that is 1 where it is known.
+fn write_estimates(
+    path: &std::path::Path,
+    profile_path: &std::path::Path,
+    recording: &Recording,
+    series: &EstimateSeries,
+) -> anyhow::Result<()> {
+    let gappy: Vec<bool> = series
+        .values
+        .iter()
+        .map(|v| v.iter().any(|x| !x.is_finite()))
+        .collect();
+    let mut names = vec!["time_s".to_string()];
+    for (output, &gappy) in series.outputs.iter().zip(&gappy) {
+        names.push(output.column.clone());
+        if gappy {
+            names.push(format!("{}_valid", output.column));
+        }
+    }
+    let mut out = Recording::new(path.display().to_string(), names)?;
+    out.set_metadata("estimated_from", recording.source());
+    out.set_metadata("profile", &profile_path.display().to_string());
+    let mut row = Vec::with_capacity(2 * series.outputs.len() + 1);
+    for i in 0..recording.len() {
+        row.clear();
+        row.push(recording.time()[i]);
+        for (values, &gappy) in series.values.iter().zip(&gappy) {
+            let v = values[i];
+            row.push(if v.is_finite() { v } else { 0.0 });
+            if gappy {
+                row.push(if v.is_finite() { 1.0 } else { 0.0 });
+            }
+        }
+        out.push_row(&row)?;
+    }
+    write_recording(path, &out)?;
+    Ok(())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = MachineProfile::load(&args.profile)?;
     let recording = read_recording(&args.recording).context("cannot read recording")?;
@@ -77,19 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<_>>()?;
     if let Some(path) = &args.output {
-        let mut names = vec!["time_s".to_string()];
-        names.extend(series.outputs.iter().map(|o| o.column.clone()));
-        let mut out = Recording::new(path.display().to_string(), names)?;
-        out.set_metadata("estimated_from", recording.source());
-        out.set_metadata("profile", &args.profile.display().to_string());
-        let mut row = Vec::with_capacity(series.outputs.len() + 1);
-        for i in 0..recording.len() {
-            row.clear();
-            row.push(recording.time()[i]);
-            row.extend(series.values.iter().map(|v| v[i]));
-            out.push_row(&row)?;
-        }
-        write_recording(path, &out)?;
+        write_estimates(path, &args.profile, &recording, &series)?;
     }
     if rows.is_empty() {
         println!(

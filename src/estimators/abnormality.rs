@@ -570,6 +570,33 @@ mod tests {
     }
 
     #[test]
+    fn judging_names_the_state_and_the_likely_cause() {
+        let levels = Threshold {
+            warning: 8.0,
+            fault: 25.0,
+        };
+        let score = |pct: f64| AbnormalityScore {
+            excess_pct: pct,
+            excess_Nm: pct / 100.0,
+            ideal_Nm: 1.0,
+            standard_error_pct: 1.5,
+            steady_blocks: 900,
+        };
+        let (state, reason) = judge(&score(2.0), levels);
+        assert_eq!(state, AbnormalityState::Normal);
+        assert!(!reason.contains('?'), "{reason}");
+        let (state, reason) = judge(&score(19.7), levels);
+        assert_eq!(state, AbnormalityState::Warning);
+        assert!(reason.contains("+19.7 % ± 1.5 %") && reason.contains("wear"));
+        let (state, reason) = judge(&score(-30.0), levels);
+        assert_eq!(state, AbnormalityState::Fault);
+        assert!(reason.contains("lost preload"), "{reason}");
+        let (state, reason) = judge(&score(f64::NAN), levels);
+        assert_eq!(state, AbnormalityState::NotYetKnown);
+        assert!(reason.contains("900 steady"), "{reason}");
+    }
+
+    #[test]
     fn reverse_running_counts_resistance_as_positive() {
         let mut estimator = MotorAbnormalityEstimator::new(&model(0.01), 5.0).unwrap();
         // Reverse: ideal torque is −(0.5 + 0.01·|n|^(2/3)); measured 10 % more negative.
