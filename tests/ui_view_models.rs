@@ -301,8 +301,7 @@ fn trends_settings() -> TrendsSettings {
             axis_column(AxisId::S, Quantity::Load),
         ],
         preset: WindowPreset::Minute,
-        follow_live: true,
-        view: None,
+        ..TrendsSettings::default()
     }
 }
 
@@ -495,6 +494,48 @@ fn trends_view_models() {
     for which in STATES {
         let view = vm::trends::build(&state(which), &trends_settings(), 1000);
         insta::assert_yaml_snapshot!(format!("trends_{which}"), view);
+    }
+}
+
+/// The Trends view carries the saved layout to the panel: folded groups, series switched off
+/// in the legend (still chosen, with their data) and the picker's width within sane bounds.
+#[test]
+fn trends_view_follows_the_saved_layout() {
+    let s = state("normal");
+    let mut settings = trends_settings();
+    settings.groups_open.insert("X axis".into(), false);
+    settings.hidden.insert("S.load_pct".into());
+    settings.picker_width = Some(310.0);
+    let view = vm::trends::build(&s, &settings, 1000);
+    let open: Vec<(&str, bool)> = view
+        .groups
+        .iter()
+        .map(|g| (g.title.as_str(), g.open))
+        .collect();
+    assert_eq!(open[0], ("X axis", false));
+    assert!(open[1..].iter().all(|(_, o)| *o), "{open:?}");
+    let series: Vec<(&str, bool, usize)> = view
+        .plots
+        .iter()
+        .flat_map(|p| &p.series)
+        .map(|s| (s.channel.as_str(), s.hidden, s.points.len()))
+        .collect();
+    assert_eq!(
+        series,
+        [
+            ("X.stator_temp_C", false, 21),
+            ("S.stator_temp_C", false, 21),
+            ("S.load_pct", true, 21)
+        ]
+    );
+    assert_eq!(view.picker_width, 310.0);
+    for (saved, shown) in [
+        (None, vm::trends::PICKER_WIDTH),
+        (Some(5000.0), 800.0),
+        (Some(f32::NAN), vm::trends::PICKER_WIDTH),
+    ] {
+        settings.picker_width = saved;
+        assert_eq!(vm::trends::build(&s, &settings, 1000).picker_width, shown);
     }
 }
 

@@ -161,6 +161,7 @@ impl HmiApp {
             .unwrap_or_default();
         // A first start draws the stator temperatures, so the Trends panel is never empty.
         settings.trends.selected.retain(|n| names.contains(n));
+        settings.trends.hidden.retain(|n| names.contains(n));
         if settings.trends.selected.is_empty() {
             settings.trends.selected = AxisId::ALL
                 .into_iter()
@@ -834,6 +835,18 @@ impl HmiApp {
                 self.settings.trends.follow_live = false;
                 self.settings.trends.view = Some((t0, t1));
             }
+            UiCommand::SetSeriesHidden(name, hidden) => {
+                let set = &mut self.settings.trends.hidden;
+                if hidden {
+                    set.insert(name);
+                } else {
+                    set.remove(&name);
+                }
+            }
+            UiCommand::SetGroupOpen(title, open) => {
+                self.settings.trends.groups_open.insert(title, open);
+            }
+            UiCommand::SetPickerWidth(width) => self.settings.trends.picker_width = Some(width),
             UiCommand::ExportTrends => {
                 let view = vm::trends::build(&self.state, &self.settings.trends, TREND_POINTS);
                 let path = PathBuf::from(&self.settings.forms.export_path);
