@@ -844,7 +844,7 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
     assert!(!offered.iter().any(|c| c == "time_s"));
     type_into(h, "Compared column", &target);
 
-    // Cancel frees the panel at once (the analysis itself cannot be interrupted).
+    // Cancel frees the panel at once (the analysis stops at its next stopping point).
     click(h, "Analyse");
     assert!(h.state().state.model_lab.discrepancy.running.is_some());
     click(h, "Cancel");
@@ -977,4 +977,57 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
     ] {
         assert!(stages.iter().any(|s| s.starts_with(phase)), "{stages:?}");
     }
+}
+
+/// The Model lab's job reports the analysis's own progress (between reading the files and
+/// preparing the plots), and a cancel stops the analysis itself: the job ends `Cancelled`
+/// without finishing it.
+#[test]
+fn cancelling_the_discrepancy_job_stops_the_analysis() {
+    use servosight::ui::jobs::{JobContext, JobMessage, JobStop};
+    use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::{Arc, mpsc};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (sim, real, target) = discrepancy_files(dir.path());
+    let (tx, rx) = mpsc::sync_channel(4096);
+    let cancel = Arc::new(AtomicBool::new(false));
+    let context = JobContext::new(tx, Arc::clone(&cancel));
+    // The operator presses Cancel once the selection has started.
+    let operator = std::thread::spawn(move || {
+        let mut seen = Vec::new();
+        for message in rx {
+            if let JobMessage::Progress(p) = message {
+                if p.stage.starts_with("analysing: selection step 1") {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+                seen.push((p.stage, p.fraction));
+            }
+        }
+        seen
+    });
+    let outcome = run_discrepancy(DiscrepancyRequest { sim, real, target }, &context);
+    drop(context);
+    let seen = operator.join().expect("the operator thread");
+    assert!(
+        matches!(outcome, Err(JobStop::Cancelled)),
+        "{:?}",
+        outcome.map(|o| o.report.summary())
+    );
+    let within: Vec<f32> = seen
+        .iter()
+        .filter(|(stage, _)| stage.starts_with("analysing: "))
+        .filter_map(|(_, f)| *f)
+        .collect();
+    assert!(
+        within.iter().any(|f| *f > 0.45) && within.iter().all(|f| (0.4..=0.95).contains(f)),
+        "the bar moves within the analysis: {seen:?}"
+    );
+    assert!(
+        !seen
+            .iter()
+            .any(|(stage, _)| stage.contains("refitting on all rows")
+                || stage.starts_with("preparing the plots")),
+        "the analysis did not run on: {seen:?}"
+    );
 }

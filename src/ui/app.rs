@@ -499,9 +499,9 @@ impl HmiApp {
         }
     }
 
-    /// Cancels the analysis and frees the panel at once: the job is asked to stop and
-    /// dropped, so whatever it still computes (the library's analysis cannot be interrupted)
-    /// is discarded when its thread ends.
+    /// Cancels the analysis and frees the panel at once: the job is asked to stop (the
+    /// analysis stops at its next stopping point) and dropped, so nothing it still sends is
+    /// taken.
     fn cancel_discrepancy(&mut self) {
         if let Some(job) = self.discrepancy_job.take() {
             job.cancel();
