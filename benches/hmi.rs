@@ -133,8 +133,7 @@ fn settings(preset: WindowPreset) -> TrendsSettings {
             })
             .collect(),
         preset,
-        follow_live: true,
-        view: None,
+        ..TrendsSettings::default()
     }
 }
 
@@ -210,8 +209,7 @@ fn latency_report() {
             axis_column(AxisId::S, Quantity::Load),
         ],
         preset: WindowPreset::Minute,
-        follow_live: true,
-        view: None,
+        ..TrendsSettings::default()
     };
     let mut ages_ms = Vec::new();
     let mut frames_ms = Vec::new();

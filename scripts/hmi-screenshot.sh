@@ -31,7 +31,7 @@ sleep 1
 shot() { # shot TAB OUTPUT [SECONDS]
     cat >"$work/hmi.json" <<JSON
 {"tab": "$1", "window_size": [1400, 900],
- "trends": {"preset": "ten_minutes", "follow_live": true,
+ "trends": {"preset": "ten_minutes",
             "selected": ["X.stator_temp_C", "est.X.motor_flange_temp_C", "est.X.nut_temp_C",
                          "est.X.front_bearing_temp_C", "S.stator_temp_C", "est.S.elongation_um"]}}
 JSON

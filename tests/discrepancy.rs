@@ -1116,3 +1116,105 @@ fn a_gain_and_offset_miscalibration_is_calibration_not_physics() {
         assert!(report.improved.rmse < 1.5 * pair.noise_sigma);
     }
 }
+
+/// An observer hears the analysis advance phase by phase (the fraction never falls) and
+/// changes nothing in the result: the report is the same, to the last bit, as without one.
+/// Saying stop ends the analysis with `Cancelled` at its next stopping point — at the start,
+/// while the candidates are built, or in the selection — and it is not asked again after.
+#[test]
+fn an_observer_follows_the_analysis_and_can_stop_it() {
+    use servosight::discrepancy::{DiscrepancyError, analyse_observed};
+    use std::sync::Mutex;
+    use std::time::{Duration, Instant};
+    // The Model lab test's pair: copper loss concealed, found in the first selection step.
+    let case = case_for(Effect::CopperLoss, 4, Noise::White, 3.0);
+    let pair = make_pair(&case);
+    let options = Options::default();
+    let started = Instant::now();
+    let plain = analyse(&pair.sim, &pair.real, &case.target, &options).expect("analysis runs");
+    let unwatched = started.elapsed();
+
+    let heard: Mutex<Vec<(f32, String, Instant)>> = Mutex::new(Vec::new());
+    let listen = |fraction: f32, stage: &str| {
+        heard
+            .lock()
+            .expect("not poisoned")
+            .push((fraction, stage.to_string(), Instant::now()));
+        true
+    };
+    let watched = analyse_observed(&pair.sim, &pair.real, &case.target, &options, &listen)
+        .expect("analysis runs");
+    assert_eq!(
+        serde_json::to_string(&watched).expect("serialises"),
+        serde_json::to_string(&plain).expect("serialises"),
+        "watching changes nothing"
+    );
+    let heard = heard.into_inner().expect("not poisoned");
+    for pair in heard.windows(2) {
+        assert!(pair[0].0 <= pair[1].0, "{:?} then {:?}", pair[0], pair[1]);
+    }
+    let stages: Vec<&str> = heard.iter().map(|h| h.1.as_str()).collect();
+    for expected in [
+        "aligning the recordings",
+        "building candidate corrections",
+        "selection step 1: scoring",
+        "selection step 1: testing against 99 surrogates",
+        "selection step 1: refitting the corrections",
+        "refitting the corrections jointly",
+        "selection step 2: scoring",
+        "refitting on all rows",
+        "locating the mismatch",
+    ] {
+        assert!(
+            stages.iter().any(|s| s.starts_with(expected)),
+            "no `{expected}` in {stages:?}"
+        );
+    }
+    assert!(heard.last().expect("reports").0 > 0.9);
+
+    // Stop at the first stage whose name starts with `at`.
+    let stop_at = |at: &str| {
+        let stopped: Mutex<Option<Instant>> = Mutex::new(None);
+        let asked_after = Mutex::new(0usize);
+        let observer = |_: f32, stage: &str| {
+            let mut stopped = stopped.lock().expect("not poisoned");
+            if stopped.is_some() {
+                *asked_after.lock().expect("not poisoned") += 1;
+                return false;
+            }
+            if stage.starts_with(at) {
+                *stopped = Some(Instant::now());
+                return false;
+            }
+            true
+        };
+        let outcome = analyse_observed(&pair.sim, &pair.real, &case.target, &options, &observer);
+        let ended = Instant::now();
+        assert!(
+            matches!(outcome, Err(DiscrepancyError::Cancelled)),
+            "stopping at `{at}` gave {:?}",
+            outcome.map(|r| r.summary())
+        );
+        let stopped = stopped
+            .into_inner()
+            .expect("not poisoned")
+            .expect("stopped");
+        assert_eq!(asked_after.into_inner().expect("not poisoned"), 0, "{at}");
+        ended - stopped
+    };
+    for at in [
+        "aligning the recordings",
+        "building candidate corrections (",
+        "selection step 1: testing against",
+        "refitting the corrections jointly",
+        "selection step 2: scoring",
+    ] {
+        let latency = stop_at(at);
+        eprintln!("stopped at `{at}` after {latency:?} (whole analysis {unwatched:?})");
+        // Promptly: well within the time of the whole analysis, from any stopping point.
+        assert!(
+            latency < unwatched / 3 + Duration::from_millis(50),
+            "stopping at `{at}` took {latency:?} (whole analysis {unwatched:?})"
+        );
+    }
+}

@@ -359,6 +359,54 @@ fn trends_and_events_controls_work() {
     assert!(!shows(h, "embedded twin connected"));
 }
 
+/// The Trends layout lives in the settings (egui would forget it at a restart): the picker's
+/// width as it was left, its folded groups and the series switched off in a plot's legend.
+#[test]
+fn the_trends_layout_is_kept_in_the_settings() {
+    let mut f = start();
+    let h = &mut f.harness;
+    // As restored from the settings file: the picker opens at the width it was left at.
+    h.state_mut().settings.trends.picker_width = Some(300.0);
+    step_until(h, "some history", |app| app.state.history.samples() > 5);
+    click(h, "Trends");
+    let width = h.state().settings.trends.picker_width.expect("a width");
+    assert!((width - 300.0).abs() < 0.5, "the picker is {width} wide");
+
+    click(h, "X axis");
+    assert_eq!(
+        h.state().settings.trends.groups_open.get("X axis"),
+        Some(&false)
+    );
+    assert!(!shows(h, "X load [%]"), "the X group is folded");
+    click(h, "X axis");
+    assert_eq!(
+        h.state().settings.trends.groups_open.get("X axis"),
+        Some(&true)
+    );
+
+    // The drawn series's legend entry is the one right of the picker.
+    let click_legend_entry = |h: &mut Harness<'static, HmiApp>| {
+        let label = "X stator temperature [°C]";
+        assert_eq!(
+            h.query_all_by_label(label).count(),
+            2,
+            "a picker entry and a legend entry"
+        );
+        h.query_all_by_label(label)
+            .max_by(|a, b| a.rect().min.x.total_cmp(&b.rect().min.x))
+            .expect("two entries")
+            .click();
+        settle(h);
+    };
+    click_legend_entry(h);
+    let trends = &h.state().settings.trends;
+    assert!(trends.hidden.contains("X.stator_temp_C"), "{trends:?}");
+    assert!(trends.selected.contains(&"X.stator_temp_C".to_string()));
+    // Still in the legend, unticked: a second click brings it back.
+    click_legend_entry(h);
+    assert!(h.state().settings.trends.hidden.is_empty());
+}
+
 /// A DOE database from the twin, written as CSV v1.
 fn database(dir: &std::path::Path, hours: f64) -> std::path::PathBuf {
     let path = dir.join("doe.csv");
@@ -505,6 +553,51 @@ fn layout_and_theme_persist_and_a_broken_file_gives_defaults() {
     assert_eq!(old.forms.operator, "otto");
     std::fs::write(&path, "{ not json").expect("written");
     assert_eq!(Settings::load(&path), Settings::default());
+}
+
+/// Everything the settings persist comes back as it was saved: the tab, the theme, the window,
+/// the Trends layout (preset, chosen and legend-hidden series, folded picker groups, picker
+/// width), the Events filter and the forms. What is not persisted (passwords, the approver, the
+/// typed event filter, a zoom into a past session's time range) comes back as the default.
+#[test]
+fn every_persisted_setting_round_trips() {
+    use servosight::ui::Settings;
+    use servosight::ui::vm::trends::WindowPreset;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("hmi.json");
+    let mut settings = Settings {
+        tab: Tab::Trends,
+        dark: false,
+        window_size: Some([1024.0, 700.0]),
+        window_pos: Some([12.0, 34.0]),
+        ..Settings::default()
+    };
+    let trends = &mut settings.trends;
+    trends.preset = WindowPreset::Shift;
+    trends.selected = vec!["X.stator_temp_C".into(), "est.X.nut_temp_C".into()];
+    trends.hidden.insert("est.X.nut_temp_C".into());
+    trends
+        .groups_open
+        .insert("X reference instruments".into(), true);
+    trends.groups_open.insert("S axis".into(), false);
+    trends.picker_width = Some(312.5);
+    settings.events.problems_only = true;
+    settings.events.hidden.insert("link".into());
+    settings.forms.operator = "otto".into();
+    settings.forms.fit_terms = "X.stator_temp_C, ambient_C".into();
+    settings.forms.lab_section = servosight::ui::panels::LabSection::Discrepancy;
+    settings.save(&path).expect("saved");
+    assert_eq!(Settings::load(&path), settings);
+
+    // Session-only state is left behind.
+    let mut session = settings.clone();
+    session.forms.password = "secret".into();
+    session.forms.approver = "maria".into();
+    session.forms.event_text = "timeout".into();
+    session.trends.follow_live = false;
+    session.trends.view = Some((100.0, 160.0));
+    session.save(&path).expect("saved");
+    assert_eq!(Settings::load(&path), settings);
 }
 
 /// The operator's shift start as a recording: the warm-up scenario's friction-fingerprint
@@ -751,7 +844,7 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
     assert!(!offered.iter().any(|c| c == "time_s"));
     type_into(h, "Compared column", &target);
 
-    // Cancel frees the panel at once (the analysis itself cannot be interrupted).
+    // Cancel frees the panel at once (the analysis stops at its next stopping point).
     click(h, "Analyse");
     assert!(h.state().state.model_lab.discrepancy.running.is_some());
     click(h, "Cancel");
@@ -884,4 +977,57 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
     ] {
         assert!(stages.iter().any(|s| s.starts_with(phase)), "{stages:?}");
     }
+}
+
+/// The Model lab's job reports the analysis's own progress (between reading the files and
+/// preparing the plots), and a cancel stops the analysis itself: the job ends `Cancelled`
+/// without finishing it.
+#[test]
+fn cancelling_the_discrepancy_job_stops_the_analysis() {
+    use servosight::ui::jobs::{JobContext, JobMessage, JobStop};
+    use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::{Arc, mpsc};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (sim, real, target) = discrepancy_files(dir.path());
+    let (tx, rx) = mpsc::sync_channel(4096);
+    let cancel = Arc::new(AtomicBool::new(false));
+    let context = JobContext::new(tx, Arc::clone(&cancel));
+    // The operator presses Cancel once the selection has started.
+    let operator = std::thread::spawn(move || {
+        let mut seen = Vec::new();
+        for message in rx {
+            if let JobMessage::Progress(p) = message {
+                if p.stage.starts_with("analysing: selection step 1") {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+                seen.push((p.stage, p.fraction));
+            }
+        }
+        seen
+    });
+    let outcome = run_discrepancy(DiscrepancyRequest { sim, real, target }, &context);
+    drop(context);
+    let seen = operator.join().expect("the operator thread");
+    assert!(
+        matches!(outcome, Err(JobStop::Cancelled)),
+        "{:?}",
+        outcome.map(|o| o.report.summary())
+    );
+    let within: Vec<f32> = seen
+        .iter()
+        .filter(|(stage, _)| stage.starts_with("analysing: "))
+        .filter_map(|(_, f)| *f)
+        .collect();
+    assert!(
+        within.iter().any(|f| *f > 0.45) && within.iter().all(|f| (0.4..=0.95).contains(f)),
+        "the bar moves within the analysis: {seen:?}"
+    );
+    assert!(
+        !seen
+            .iter()
+            .any(|(stage, _)| stage.contains("refitting on all rows")
+                || stage.starts_with("preparing the plots")),
+        "the analysis did not run on: {seen:?}"
+    );
 }

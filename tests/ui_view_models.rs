@@ -1,5 +1,6 @@
 //! Snapshots of every panel's view model in the normal, warning, fault, disconnected and
 //! awaiting-approval states, built from hand-made state snapshots (no window, no link).
+#![allow(non_snake_case)] // unit suffixes are part of the names
 
 use std::path::PathBuf;
 
@@ -300,8 +301,7 @@ fn trends_settings() -> TrendsSettings {
             axis_column(AxisId::S, Quantity::Load),
         ],
         preset: WindowPreset::Minute,
-        follow_live: true,
-        view: None,
+        ..TrendsSettings::default()
     }
 }
 
@@ -364,6 +364,123 @@ fn overview_shows_the_preload_state() {
     assert_eq!(reading.value, "not measured (warm-up analysis)");
 }
 
+/// The "normal" state with the machine profile and the torque split's estimates, the X nut
+/// carrying `nut_Nm` (the X motor its torque plus the bearings' friction).
+fn loaded_state(nut_Nm: f64) -> HmiState {
+    let base = state("normal");
+    let split = [
+        "est.X.front_bearing_torque_Nm",
+        "est.X.back_bearing_torque_Nm",
+        "est.X.nut_torque_Nm",
+    ];
+    let mut names = names();
+    names.extend(split.map(String::from));
+    let column = |name: String| names.iter().position(|n| *n == name).expect("a column");
+    let (torque, current, load) = (
+        column(axis_column(AxisId::X, Quantity::Torque)),
+        column(axis_column(AxisId::X, Quantity::Current)),
+        column(axis_column(AxisId::X, Quantity::Load)),
+    );
+    let mut s = HmiState::new(names.clone(), base.link.clone(), 1 << 20, base.compensation);
+    s.profile = Some(twin_profile());
+    s.estimate_limits = base.estimate_limits;
+    for i in 0..=20 {
+        let t = 700.0 + f64::from(i) * 0.5;
+        let mut row = row(t, 41.3, 55.0, 30.0);
+        let (front_Nm, back_Nm) = (0.16, 0.06);
+        row[torque] = nut_Nm + front_Nm + back_Nm;
+        // The twin's X motor: 8 N·m rated, 1.2 N·m/A.
+        row[current] = row[torque] / 1.2;
+        row[load] = 100.0 * row[torque] / 8.0;
+        row.extend([front_Nm, back_Nm, nut_Nm]);
+        s.push_row(&row);
+    }
+    s
+}
+
+/// A feed axis's card shows the axial load on its front bearing (as a share of the bearing's
+/// dynamic rating C) and on its nut (as a share of the load at which it loses its preload),
+/// from the estimated nut torque; at the depth-of-cut margin of a limit the light warns, at the
+/// limit it is a fault. Without a profile or a split estimate there is no such line.
+#[test]
+fn overview_shows_bearing_and_nut_load() {
+    let x_card = |s: &HmiState| {
+        vm::overview::build(s)
+            .cards
+            .into_iter()
+            .find(|c| c.axis == "X")
+            .expect("an X card")
+    };
+    let load = |card: &vm::overview::AxisCard, label: &str| {
+        card.readings
+            .iter()
+            .find(|r| r.label == label)
+            .cloned()
+            .unwrap_or_else(|| panic!("no {label} on {card:?}"))
+    };
+    // During a cut: (1.6 − 0.378 N·m preload drag) · 2π · 0.9 / 10 mm = 691 N axial,
+    // 2.7 % of the bearing's C = 26 kN and 16.4 % of 2.8 × 1500 N.
+    let cutting = loaded_state(1.6);
+    let card = x_card(&cutting);
+    let bearing = load(&card, "front bearing load (estimated)");
+    assert_eq!(
+        (bearing.value.as_str(), bearing.unit.as_str()),
+        ("2.7", "% of rating C (691 N axial)")
+    );
+    assert_eq!(load(&card, "nut load (estimated)").value, "16.4");
+    assert_eq!(card.light.severity, Severity::Normal, "{:?}", card.light);
+    insta::assert_yaml_snapshot!("overview_loads_normal", vm::overview::build(&cutting));
+
+    // 3518 N: beyond 80 % of the nut's 4200 N, within 80 % of the bearing's C₀/4 = 5750 N.
+    let heavy = loaded_state(6.6);
+    let card = x_card(&heavy);
+    assert_eq!(
+        load(&card, "nut load (estimated)").severity,
+        Severity::Warning
+    );
+    assert_eq!(
+        load(&card, "front bearing load (estimated)").severity,
+        Severity::Normal
+    );
+    assert_eq!(card.light.severity, Severity::Warning);
+    assert!(
+        card.light.reasons.iter().any(|r| r
+            == "nut load (estimated) 3518 N axial at or above 80 % of the nut's preload-loss limit 4200 N"),
+        "{:?}",
+        card.light
+    );
+    insta::assert_yaml_snapshot!("overview_loads_warning", vm::overview::build(&heavy));
+
+    // 4649 N: the nut's preload is gone (fault), the bearing is past 80 % of C₀/4 (warning).
+    let card = x_card(&loaded_state(8.6));
+    assert_eq!(
+        load(&card, "nut load (estimated)").severity,
+        Severity::Fault
+    );
+    assert_eq!(
+        load(&card, "front bearing load (estimated)").severity,
+        Severity::Warning
+    );
+    assert_eq!(card.light.severity, Severity::Fault);
+
+    // No profile, or no split estimate: no load lines at all.
+    let mut unprofiled = loaded_state(1.6);
+    unprofiled.profile = None;
+    let mut unsplit = state("normal");
+    unsplit.profile = Some(twin_profile());
+    for s in [unprofiled, unsplit] {
+        let card = x_card(&s);
+        assert!(
+            !card
+                .readings
+                .iter()
+                .any(|r| r.label.contains("load (estimated)")),
+            "{:?}",
+            card.readings
+        );
+    }
+}
+
 #[test]
 fn status_bar_view_models() {
     for which in STATES {
@@ -377,6 +494,48 @@ fn trends_view_models() {
     for which in STATES {
         let view = vm::trends::build(&state(which), &trends_settings(), 1000);
         insta::assert_yaml_snapshot!(format!("trends_{which}"), view);
+    }
+}
+
+/// The Trends view carries the saved layout to the panel: folded groups, series switched off
+/// in the legend (still chosen, with their data) and the picker's width within sane bounds.
+#[test]
+fn trends_view_follows_the_saved_layout() {
+    let s = state("normal");
+    let mut settings = trends_settings();
+    settings.groups_open.insert("X axis".into(), false);
+    settings.hidden.insert("S.load_pct".into());
+    settings.picker_width = Some(310.0);
+    let view = vm::trends::build(&s, &settings, 1000);
+    let open: Vec<(&str, bool)> = view
+        .groups
+        .iter()
+        .map(|g| (g.title.as_str(), g.open))
+        .collect();
+    assert_eq!(open[0], ("X axis", false));
+    assert!(open[1..].iter().all(|(_, o)| *o), "{open:?}");
+    let series: Vec<(&str, bool, usize)> = view
+        .plots
+        .iter()
+        .flat_map(|p| &p.series)
+        .map(|s| (s.channel.as_str(), s.hidden, s.points.len()))
+        .collect();
+    assert_eq!(
+        series,
+        [
+            ("X.stator_temp_C", false, 21),
+            ("S.stator_temp_C", false, 21),
+            ("S.load_pct", true, 21)
+        ]
+    );
+    assert_eq!(view.picker_width, 310.0);
+    for (saved, shown) in [
+        (None, vm::trends::PICKER_WIDTH),
+        (Some(5000.0), 800.0),
+        (Some(f32::NAN), vm::trends::PICKER_WIDTH),
+    ] {
+        settings.picker_width = saved;
+        assert_eq!(vm::trends::build(&s, &settings, 1000).picker_width, shown);
     }
 }
 

@@ -17,6 +17,9 @@
 //! 5. [`localise`]: mismatch regions against a noise floor taken from the held-out residual,
 //!    with the operating conditions there and where the simulation is right.
 //!
+//! [`analyse_observed`] runs the same analysis under an [`Observer`] that hears how far it has
+//! got and can stop it (an HMI's progress bar and Cancel button); [`analyse`] runs it unwatched.
+//!
 //! ```no_run
 //! use servosight::discrepancy::{Options, analyse};
 //! use servosight::signal::read_recording;
@@ -38,6 +41,7 @@ pub mod select;
 pub mod series;
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 pub use library::Physics;
 pub use localise::Region;
@@ -91,6 +95,74 @@ pub enum DiscrepancyError {
         /// What it must be.
         requirement: &'static str,
     },
+    /// The [`Observer`] stopped the analysis.
+    #[error("the analysis was cancelled")]
+    Cancelled,
+}
+
+/// Watches an analysis ([`analyse_observed`]): called with the share of the work done (0 to 1,
+/// never falling) and what is being done, at the analysis's natural stopping points — between
+/// its phases, every few candidate corrections built, and around each selection step's
+/// surrogate test and joint refit. Returning `false` stops the analysis there with
+/// [`DiscrepancyError::Cancelled`]. It is called from the analysis's worker threads too, hence
+/// `Sync`; it should return quickly.
+pub type Observer<'a> = dyn Fn(f32, &str) -> bool + Sync + 'a;
+
+/// An analysis's [`Observer`] and whether it has said stop, so that work on other threads, and
+/// code that cannot return an error, sees the stop too.
+pub struct Watch<'a> {
+    observer: Option<&'a Observer<'a>>,
+    stopped: AtomicBool,
+    /// The last fraction reported (as `f32` bits), for reports that only check.
+    fraction: AtomicU32,
+}
+
+impl<'a> Watch<'a> {
+    /// A watch that reports to `observer` (`None`: nobody watches, nothing stops).
+    pub fn new(observer: Option<&'a Observer<'a>>) -> Watch<'a> {
+        Watch {
+            observer,
+            stopped: AtomicBool::new(false),
+            fraction: AtomicU32::new(0.0_f32.to_bits()),
+        }
+    }
+
+    /// Reports `fraction` of the work done at `stage` (the stage is formatted only when
+    /// someone watches); `Err(Cancelled)` when the observer says stop, now or before.
+    pub fn report(
+        &self,
+        fraction: f32,
+        stage: impl FnOnce() -> String,
+    ) -> Result<(), DiscrepancyError> {
+        if self.stopped() {
+            return Err(DiscrepancyError::Cancelled);
+        }
+        let Some(observer) = self.observer else {
+            return Ok(());
+        };
+        // Bits of non-negative floats order like the floats.
+        self.fraction
+            .fetch_max(fraction.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
+        let fraction = f32::from_bits(self.fraction.load(Ordering::Relaxed));
+        if observer(fraction, &stage()) {
+            Ok(())
+        } else {
+            self.stopped.store(true, Ordering::Relaxed);
+            Err(DiscrepancyError::Cancelled)
+        }
+    }
+
+    /// Asks the observer whether to go on without advancing the fraction (for long loops
+    /// whose share of the work is not known in advance); true once it has said stop.
+    pub fn should_stop(&self, stage: impl FnOnce() -> String) -> bool {
+        let fraction = f32::from_bits(self.fraction.load(Ordering::Relaxed));
+        self.report(fraction, stage).is_err()
+    }
+
+    /// True once the observer has said stop (without asking it again).
+    pub fn stopped(&self) -> bool {
+        self.stopped.load(Ordering::Relaxed)
+    }
 }
 
 /// Settings of the analysis. The defaults are what the proof in `docs/discrepancy.md` ran.
@@ -224,7 +296,38 @@ pub fn analyse(
     target: &str,
     options: &Options,
 ) -> Result<DiscrepancyReport, DiscrepancyError> {
+    analyse_watched(sim, real, target, options, &Watch::new(None))
+}
+
+/// [`analyse`] under an [`Observer`] that hears how far the analysis has got and may stop it
+/// ([`DiscrepancyError::Cancelled`]). Watching changes nothing in the result.
+pub fn analyse_observed(
+    sim: &crate::signal::Recording,
+    real: &crate::signal::Recording,
+    target: &str,
+    options: &Options,
+    observer: &Observer<'_>,
+) -> Result<DiscrepancyReport, DiscrepancyError> {
+    analyse_watched(sim, real, target, options, &Watch::new(Some(observer)))
+}
+
+/// Shares of the work (0 to 1) at which the phases start: building the candidates, the
+/// selection, the final refit and figures, the localisation. Rough shares of the time on a
+/// long recording.
+const BUILD_AT: f32 = 0.05;
+const SELECT_AT: f32 = 0.3;
+const REFIT_AT: f32 = 0.9;
+const LOCATE_AT: f32 = 0.97;
+
+fn analyse_watched(
+    sim: &crate::signal::Recording,
+    real: &crate::signal::Recording,
+    target: &str,
+    options: &Options,
+    watch: &Watch<'_>,
+) -> Result<DiscrepancyReport, DiscrepancyError> {
     options.validate()?;
+    watch.report(0.0, || "aligning the recordings".into())?;
     let aligned = Aligned::new(sim, real, target)?;
     let n = aligned.len();
     let ctx = Context::new(&aligned, target);
@@ -246,12 +349,30 @@ pub fn analyse(
         .enumerate()
         .flat_map(|(index, family)| family.grid.iter().map(move |theta| (index, theta)))
         .collect();
+    watch.report(BUILD_AT, || {
+        format!("building {} candidate corrections", grid.len())
+    })?;
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let every = (grid.len() / 25).max(1);
     let built = series::parallel_map(&grid, |&(index, theta)| {
-        build(&families[index], &ctx, theta)
+        if watch.stopped() {
+            return Vec::new();
+        }
+        let binned = build(&families[index], &ctx, theta)
             .iter()
             .map(|c| bin_means(c, &bins))
-            .collect::<Vec<Vec<f64>>>()
+            .collect::<Vec<Vec<f64>>>();
+        let done = done.fetch_add(1, Ordering::Relaxed) + 1;
+        if done.is_multiple_of(every) {
+            // A stop shows in `watch` and is returned after the loop.
+            let _ = watch.report(
+                BUILD_AT + (SELECT_AT - BUILD_AT) * done as f32 / grid.len() as f32,
+                || format!("building candidate corrections ({done} of {})", grid.len()),
+            );
+        }
+        binned
     });
+    watch.report(SELECT_AT, || "preparing the selection".into())?;
     for ((index, theta), binned) in grid.into_iter().zip(built) {
         if binned.is_empty() {
             continue;
@@ -286,6 +407,7 @@ pub fn analyse(
         active: Vec::new(),
         min_relative_gain: options.min_relative_gain,
         state: None,
+        watch,
     };
     let steps = stepwise(
         &Problem {
@@ -298,7 +420,10 @@ pub fn analyse(
         },
         options,
         &mut |member, base| joint.accept(members[member].family, &members[member].theta, base),
-    );
+        watch,
+        SELECT_AT..REFIT_AT,
+    )?;
+    watch.report(REFIT_AT, || "refitting on all rows".into())?;
     let state_ctx = joint.state_context();
     let accepted = std::mem::take(&mut joint.accepted);
     let active = std::mem::take(&mut joint.active);
@@ -515,6 +640,7 @@ pub fn analyse(
             }
         }
     }
+    watch.report(LOCATE_AT, || "locating the mismatch".into())?;
     let conditions = localise::Conditions::new(&aligned);
     let located = localise::localise(&ctx.time, &mismatch, &cv_residual, &conditions);
     let noise_floor = NoiseFloor {
@@ -688,6 +814,9 @@ struct Joint<'a> {
     min_relative_gain: f64,
     /// Full-rate correction of the target's state (sum of the fitted physical corrections).
     state: Option<Vec<f64>>,
+    /// The analysis's observer: the refit stops early once it says stop (the analysis then
+    /// ends with `Cancelled` at the next report, so the unfinished refit is never used).
+    watch: &'a Watch<'a>,
 }
 
 impl Joint<'_> {
@@ -746,6 +875,12 @@ impl Joint<'_> {
         }
         let active = self.active.iter().filter(|a| **a).count();
         for round in 0..JOINT_ROUNDS {
+            if self
+                .watch
+                .should_stop(|| format!("refitting the corrections jointly (round {})", round + 1))
+            {
+                return;
+            }
             // Time constants, one member at a time with all the others in the model (with a
             // single correction the refinement above already did this).
             if active > 1 || (stateful && round > 0) {
@@ -899,6 +1034,9 @@ impl Joint<'_> {
         let ones = vec![1.0; self.y.len()];
         let mut previous_sse = f64::INFINITY;
         for _ in 0..STATE_ITERATIONS {
+            if self.watch.stopped() {
+                return;
+            }
             let state_ctx = self.state_context();
             // Full-rate columns, their binned standardised form, and the joint fit.
             let full: Vec<(usize, Vec<Vec<f64>>)> = self
@@ -1065,4 +1203,45 @@ pub fn parameters_by_physics(
         .iter()
         .map(|f| (f.physics.clone(), f.parameters.clone()))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Mutex;
+
+    /// The observer hears a fraction that never falls (a later phase may report less than an
+    /// earlier estimate), and once it says stop every later report is `Cancelled` without
+    /// asking it again; nobody watching never stops.
+    #[test]
+    fn a_watch_reports_rising_fractions_and_stays_stopped() {
+        let heard = Mutex::new(Vec::new());
+        let observer = |fraction: f32, stage: &str| {
+            heard.lock().expect("not poisoned").push(fraction);
+            stage != "stop here"
+        };
+        let watch = Watch::new(Some(&observer));
+        assert!(watch.report(0.5, || "half".into()).is_ok());
+        assert!(watch.report(0.3, || "less".into()).is_ok());
+        assert!(!watch.should_stop(|| "still going".into()));
+        assert!(watch.report(2.0, || "clamped".into()).is_ok());
+        assert!(watch.should_stop(|| "stop here".into()));
+        assert!(watch.stopped());
+        assert!(matches!(
+            watch.report(1.0, || "after".into()),
+            Err(DiscrepancyError::Cancelled)
+        ));
+        assert_eq!(
+            heard.into_inner().expect("not poisoned"),
+            [0.5, 0.5, 0.5, 1.0, 1.0]
+        );
+
+        let unwatched = Watch::new(None);
+        assert!(
+            unwatched
+                .report(0.5, || unreachable!("not formatted"))
+                .is_ok()
+        );
+        assert!(!unwatched.should_stop(|| unreachable!("not formatted")));
+    }
 }

@@ -11,10 +11,10 @@ use faer::{Accum, Mat, Par};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 
-use super::Options;
 use super::cv::{Blocks, ModelGram, TargetStats, least_squares};
 use super::library::{Family, Kind};
 use super::series::{SurrogateSpectrum, mean, moving_average, parallel_map, std_dev};
+use super::{DiscrepancyError, Options, Watch};
 
 /// One candidate member: a family at one point of its parameter grid.
 #[derive(Debug, Clone)]
@@ -362,14 +362,31 @@ impl ViewStep<'_> {
 
 /// Runs the stepwise selection: the intercept is always in the model (the offset is absorbed
 /// first); each step adds the best member of a kind not chosen yet if it is significant.
-pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_>) -> Vec<Step> {
+/// `watch` hears the progress as shares of the work in `span` (each step an equal part of it:
+/// scoring, the surrogate test, the refit) and may stop the selection between them.
+pub fn stepwise(
+    problem: &Problem<'_>,
+    options: &Options,
+    accept: &mut Accept<'_>,
+    watch: &Watch<'_>,
+    span: std::ops::Range<f32>,
+) -> Result<Vec<Step>, DiscrepancyError> {
     let blocks = problem.blocks;
     let n = problem.y.len();
     let mut rng = StdRng::seed_from_u64(options.seed);
     let mut base: Vec<Vec<f64>> = vec![vec![1.0; n]];
     let mut chosen_kinds: Vec<Kind> = Vec::new();
     let mut steps = Vec::new();
-    for _ in 0..options.max_steps {
+    let per_step = (span.end - span.start) / options.max_steps.max(1) as f32;
+    for step in 0..options.max_steps {
+        let at = |part: f32| span.start + per_step * (step as f32 + part);
+        watch.report(at(0.0), || {
+            format!(
+                "selection step {}: scoring {} candidates",
+                step + 1,
+                problem.members.len()
+            )
+        })?;
         let view_indices: Vec<usize> = (0..problem.views.len()).collect();
         let view_steps: Vec<ViewStep<'_>> = parallel_map(&view_indices, |&v| {
             let view = &problem.views[v];
@@ -407,6 +424,13 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
         if observed.iter().all(Option::is_none) {
             break;
         }
+        watch.report(at(0.2), || {
+            format!(
+                "selection step {}: testing against {} surrogates",
+                step + 1,
+                options.surrogates
+            )
+        })?;
         // Surrogate null: the residual of the current base model, phase-randomised.
         let base_columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
         let (beta, _) = least_squares(&base_columns, problem.y)
@@ -579,11 +603,16 @@ pub fn stepwise(problem: &Problem<'_>, options: &Options, accept: &mut Accept<'_
         if !accepted {
             break;
         }
+        watch.report(at(0.7), || {
+            format!("selection step {}: refitting the corrections", step + 1)
+        })?;
         chosen_kinds.push(best_kind);
         let refined = accept(best, &base);
         base.extend(refined);
     }
-    steps
+    // A refit the observer stopped half-way is not a result.
+    watch.report(span.end, || "selection done".into())?;
+    Ok(steps)
 }
 
 /// Runners-up whose held-out errors, block by block, are not significantly worse than the

@@ -7,8 +7,9 @@
 //! and the smallest depth wins — named, with the reason.
 #![allow(non_snake_case)] // unit suffixes are part of the names
 
+use super::fingerprint::nut_preload_drag_Nm;
 use crate::fit::{Design, ols};
-use crate::profile::{AxisKind, MachineProfile};
+use crate::profile::{AxisKind, AxisProfile, MachineProfile, ScrewProfile};
 use crate::signal::channel::CUT_DEPTH;
 use crate::signal::{AxisId, Quantity, Recording, axis_column};
 
@@ -69,6 +70,44 @@ pub enum DepthOfCutError {
     /// A regression failed.
     #[error("{0}")]
     Fit(#[from] crate::fit::FitError),
+}
+
+/// Axial load through a ball screw per N·m of thrust torque at the nut, N/(N·m): the thrust
+/// torque is τ = F·l / (2π·η) while the motor drives the load (a cutting force resists the
+/// feed, so during cuts it does).
+pub fn screw_thrust_N_per_Nm(screw: &ScrewProfile) -> f64 {
+    2.0 * std::f64::consts::PI * screw.efficiency / (screw.lead_mm / 1000.0)
+}
+
+/// The axial-load limits of a feed axis, before the profile's margin.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct AxialLoadLimits {
+    /// The nut loses its preload above this axial load: preload_loss_factor × preload, N.
+    pub nut_preload_loss_N: f64,
+    /// The fixed (front) bearing's static-safety limit C₀ / s₀, N.
+    pub fixed_bearing_static_N: f64,
+}
+
+/// The axial-load limits of a feed axis with the bearing static safety factor `static_safety`
+/// (the profile's `depth_of_cut.bearing_static_safety`); `None` for an axis without a nut.
+pub fn axial_load_limits(axis: &AxisProfile, static_safety: f64) -> Option<AxialLoadLimits> {
+    let nut = axis.nut.as_ref()?;
+    Some(AxialLoadLimits {
+        nut_preload_loss_N: nut.preload_loss_factor * nut.preload_N,
+        fixed_bearing_static_N: axis.front_bearing.static_load_rating_N / static_safety,
+    })
+}
+
+/// The axial load on a feed axis's nut, N, from the nut's share of the motor torque (the
+/// estimated torque split, Eq. 8): what is left after the nominal preload drag is thrust
+/// torque. The fixed (front) bearing reacts the same axial load — its own split torque is
+/// friction, not load, and too small for the split to track (docs/accuracy.md). `None` for an
+/// axis without screw or nut.
+pub fn axial_load_from_nut_torque_N(axis: &AxisProfile, nut_torque_Nm: f64) -> Option<f64> {
+    let screw = axis.screw.as_ref()?;
+    let nut = axis.nut.as_ref()?;
+    let thrust_Nm = (nut_torque_Nm.abs() - nut_preload_drag_Nm(screw, nut)).max(0.0);
+    Some(thrust_Nm * screw_thrust_N_per_Nm(screw))
 }
 
 /// Recommends the maximum rough-cut depth from the cuts in `recording`.
@@ -261,17 +300,17 @@ pub fn recommend_depth_of_cut(
             r2,
             format!("{:.0} % of the rated {rated:.1} N·m", 100.0 * margin),
         );
-        if let (Some(screw), Some(nut)) = (&axis.screw, &axis.nut) {
-            // Thrust torque τ = F·l / (2π η): newtons of axial load per N·m of added torque.
-            let newtons_per_Nm =
-                2.0 * std::f64::consts::PI * screw.efficiency / (screw.lead_mm / 1000.0);
-            let nut_limit = nut.preload_loss_factor * nut.preload_N;
+        if let (Some(screw), Some(nut), Some(limits)) =
+            (&axis.screw, &axis.nut, axial_load_limits(axis, s0))
+        {
+            // Newtons of axial load per N·m of torque the cut adds.
+            let newtons_per_Nm = screw_thrust_N_per_Nm(screw);
             push(
                 format!("{id} nut preload"),
                 "N",
                 0.0,
                 slope * newtons_per_Nm,
-                margin * nut_limit,
+                margin * limits.nut_preload_loss_N,
                 r2,
                 format!(
                     "the preload ({:.0} N) is lost above {:.1}× it in axial load",
@@ -284,7 +323,7 @@ pub fn recommend_depth_of_cut(
                 "N",
                 0.0,
                 slope * newtons_per_Nm,
-                margin * c0 / s0,
+                margin * limits.fixed_bearing_static_N,
                 r2,
                 format!("static safety C₀/P₀ ≥ {s0} (C₀ = {:.0} kN)", c0 / 1000.0),
             );
@@ -325,4 +364,57 @@ pub fn recommend_depth_of_cut(
         cutting_samples: rows.len(),
         components,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::NutRating;
+
+    /// An X axis with round numbers: Ø32 × 10 screw at η = 0.9, 1500 N nut preload lost at
+    /// 2.8×, front bearing C = 26 kN and C₀ = 23 kN.
+    fn axis() -> AxisProfile {
+        let mut axis = MachineProfile::twin_default().axes[&AxisId::X].clone();
+        let screw = axis.screw.as_mut().expect("the twin's X has a screw");
+        screw.lead_mm = 10.0;
+        screw.diameter_mm = 32.0;
+        screw.efficiency = 0.9;
+        axis.nut = Some(NutRating {
+            dynamic_load_rating_N: 30_000.0,
+            preload_N: 1500.0,
+            preload_loss_factor: 2.8,
+        });
+        axis.front_bearing.dynamic_load_rating_N = 26_000.0;
+        axis.front_bearing.static_load_rating_N = 23_000.0;
+        axis
+    }
+
+    /// By hand: tan β = 10 / (32π) = 0.099472; preload drag T_d = 0.05 / √tan β · 1500 N ·
+    /// 0.010 m / 2π = 0.378470 N·m; 2π · 0.9 / 0.010 m = 565.487 N per N·m; so 2 N·m at the nut
+    /// is (2 − 0.378470) · 565.487 = 916.954 N of axial load: 21.83 % of the 4200 N at which
+    /// the preload is lost and 3.527 % of the bearing's C.
+    #[test]
+    fn nut_torque_becomes_axial_load_by_the_thrust_formula() {
+        let axis = axis();
+        let load = axial_load_from_nut_torque_N(&axis, 2.0).expect("a feed axis");
+        assert!((load - 916.953_681).abs() < 1e-5, "{load}");
+        // The direction of travel does not change the load's size.
+        let reverse = axial_load_from_nut_torque_N(&axis, -2.0).expect("a feed axis");
+        assert_eq!(load, reverse);
+        // Below the preload drag there is no thrust.
+        assert_eq!(axial_load_from_nut_torque_N(&axis, 0.3), Some(0.0));
+
+        let limits = axial_load_limits(&axis, 4.0).expect("a nut");
+        assert_eq!(limits.nut_preload_loss_N, 4200.0);
+        assert_eq!(limits.fixed_bearing_static_N, 5750.0);
+        assert!((100.0 * load / limits.nut_preload_loss_N - 21.832_23).abs() < 1e-4);
+        assert!((100.0 * load / axis.front_bearing.dynamic_load_rating_N - 3.526_745).abs() < 1e-5);
+    }
+
+    #[test]
+    fn an_axis_without_a_nut_has_no_axial_load() {
+        let spindle = MachineProfile::twin_default().axes[&AxisId::S].clone();
+        assert_eq!(axial_load_from_nut_torque_N(&spindle, 2.0), None);
+        assert_eq!(axial_load_limits(&spindle, 4.0), None);
+    }
 }

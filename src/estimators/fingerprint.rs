@@ -13,7 +13,7 @@
 #![allow(non_snake_case)] // unit suffixes are part of the names
 
 use crate::fit::{Design, ols};
-use crate::profile::AxisProfile;
+use crate::profile::{AxisProfile, NutRating, ScrewProfile};
 use crate::signal::channel::CUT_DEPTH;
 use crate::signal::{AxisId, Quantity, Recording, axis_column};
 
@@ -260,14 +260,17 @@ pub struct PreloadDiagnosis {
     pub evidence: String,
 }
 
+/// The drag torque a ball-screw nut's nominal preload causes, N·m: the catalogue formula
+/// T_d = 0.05·(tan β)^(−1/2)·F_a0·l / (2π) with lead angle β = atan(l / (π·d)).
+pub fn nut_preload_drag_Nm(screw: &ScrewProfile, nut: &NutRating) -> f64 {
+    let tan_beta = screw.lead_mm / (std::f64::consts::PI * screw.diameter_mm);
+    0.05 / tan_beta.sqrt() * nut.preload_N * (screw.lead_mm / 1000.0) / (2.0 * std::f64::consts::PI)
+}
+
 /// The drag torque the nominal preloads cause, N·m: nut (catalogue formula) plus the
 /// preload-dependent Palmgren term M₁ = f₁·P·d_m of both support bearings.
 pub fn nominal_preload_drag_Nm(axis: &AxisProfile) -> Option<f64> {
-    let screw = axis.screw.as_ref()?;
-    let nut = axis.nut.as_ref()?;
-    let tan_beta = screw.lead_mm / (std::f64::consts::PI * screw.diameter_mm);
-    let nut_drag = 0.05 / tan_beta.sqrt() * nut.preload_N * (screw.lead_mm / 1000.0)
-        / (2.0 * std::f64::consts::PI);
+    let nut_drag = nut_preload_drag_Nm(axis.screw.as_ref()?, axis.nut.as_ref()?);
     let m1 = |b: &crate::profile::BearingRating| b.f1 * b.preload_N * b.pitch_diameter_mm / 1000.0;
     Some(nut_drag + m1(&axis.front_bearing) + m1(&axis.back_bearing))
 }

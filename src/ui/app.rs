@@ -161,6 +161,7 @@ impl HmiApp {
             .unwrap_or_default();
         // A first start draws the stator temperatures, so the Trends panel is never empty.
         settings.trends.selected.retain(|n| names.contains(n));
+        settings.trends.hidden.retain(|n| names.contains(n));
         if settings.trends.selected.is_empty() {
             settings.trends.selected = AxisId::ALL
                 .into_iter()
@@ -498,9 +499,9 @@ impl HmiApp {
         }
     }
 
-    /// Cancels the analysis and frees the panel at once: the job is asked to stop and
-    /// dropped, so whatever it still computes (the library's analysis cannot be interrupted)
-    /// is discarded when its thread ends.
+    /// Cancels the analysis and frees the panel at once: the job is asked to stop (the
+    /// analysis stops at its next stopping point) and dropped, so nothing it still sends is
+    /// taken.
     fn cancel_discrepancy(&mut self) {
         if let Some(job) = self.discrepancy_job.take() {
             job.cancel();
@@ -834,6 +835,18 @@ impl HmiApp {
                 self.settings.trends.follow_live = false;
                 self.settings.trends.view = Some((t0, t1));
             }
+            UiCommand::SetSeriesHidden(name, hidden) => {
+                let set = &mut self.settings.trends.hidden;
+                if hidden {
+                    set.insert(name);
+                } else {
+                    set.remove(&name);
+                }
+            }
+            UiCommand::SetGroupOpen(title, open) => {
+                self.settings.trends.groups_open.insert(title, open);
+            }
+            UiCommand::SetPickerWidth(width) => self.settings.trends.picker_width = Some(width),
             UiCommand::ExportTrends => {
                 let view = vm::trends::build(&self.state, &self.settings.trends, TREND_POINTS);
                 let path = PathBuf::from(&self.settings.forms.export_path);

@@ -4,16 +4,16 @@
 //! thread. Also the cheap companion job that reads the two files' headers so the panel can
 //! offer the columns they share as targets.
 //!
-//! `analyse` has no progress or cancel hook: the job reports the phases it can (reading the
-//! simulation, reading the real recording, analysing), stops between them when cancelled, and
-//! the app drops a cancelled job at once, so the panel is free while the analysis (a second or
-//! two for 100 k rows) finishes unseen and its result is discarded.
+//! The job reports reading both files and then the analysis's own progress (its phases and
+//! selection steps, through [`analyse_observed`]); a cancel stops the analysis at its next
+//! stopping point, and the app drops a cancelled job at once, so the panel is free even in
+//! the moment before the thread notices.
 
 use std::path::{Path, PathBuf};
 
 use super::history::{History, HistoryConfig};
 use super::jobs::{JobContext, JobStop, read_with_progress};
-use crate::discrepancy::{DiscrepancyReport, Options, analyse};
+use crate::discrepancy::{DiscrepancyError, DiscrepancyReport, Options, analyse_observed};
 use crate::signal::RecordingReader;
 use crate::signal::channel::TIME;
 
@@ -81,9 +81,14 @@ pub fn plot_history(report: &DiscrepancyReport) -> History {
     history
 }
 
+/// Share of the job's progress bar the analysis takes (reading the files takes the first 40 %,
+/// the plots the last 5 %).
+const ANALYSIS_SPAN: std::ops::Range<f32> = 0.4..0.95;
+
 /// Reads both files and analyses them with the default [`Options`] (what the proof in
-/// `docs/discrepancy.md` ran), reporting the phases; the library's errors (target missing,
-/// no overlap in time, too short) come back as the job's failure, word for word.
+/// `docs/discrepancy.md` ran), reporting the reading and the analysis's progress and stopping
+/// when cancelled; the library's errors (target missing, no overlap in time, too short) come
+/// back as the job's failure, word for word.
 pub fn run_discrepancy(
     request: DiscrepancyRequest,
     context: &JobContext<DiscrepancyOutcome>,
@@ -100,16 +105,19 @@ pub fn run_discrepancy(
         "reading the real recording",
         0.2..0.4,
     )?;
-    context.progress(
-        &format!(
-            "analysing {} against {} rows (cannot report finer progress)",
-            real.len(),
-            sim.len()
-        ),
-        Some(0.4),
-    );
-    let report = analyse(&sim, &real, &request.target, &Options::default())
-        .map_err(|e| JobStop::Failed(e.to_string()))?;
+    let observer = |fraction: f32, stage: &str| {
+        let span = ANALYSIS_SPAN.end - ANALYSIS_SPAN.start;
+        context.progress(
+            &format!("analysing: {stage}"),
+            Some(ANALYSIS_SPAN.start + span * fraction),
+        );
+        context.check().is_ok()
+    };
+    let report = analyse_observed(&sim, &real, &request.target, &Options::default(), &observer)
+        .map_err(|e| match e {
+            DiscrepancyError::Cancelled => JobStop::Cancelled,
+            other => JobStop::Failed(other.to_string()),
+        })?;
     context.check()?;
     context.progress("preparing the plots", Some(0.95));
     let plot = plot_history(&report);

@@ -76,6 +76,12 @@ pub enum UiCommand {
     FollowLive,
     /// The operator zoomed or panned the plots to this time range.
     SetView(f64, f64),
+    /// A series was switched off (true) or on in its plot's legend (by column name).
+    SetSeriesHidden(String, bool),
+    /// A group of the channel picker was unfolded (true) or folded (by title).
+    SetGroupOpen(String, bool),
+    /// The channel picker was resized to this width, points.
+    SetPickerWidth(f32),
     /// Write what the Trends panel shows to the export path.
     ExportTrends,
     /// Draw what the Trends panel shows into the PNG file.

@@ -2,7 +2,7 @@
 //! linked), CSV export.
 
 use eframe::egui;
-use egui_plot::{ColorConflictHandling, Legend, Line, Plot, PlotPoints};
+use egui_plot::{ColorConflictHandling, ItemId, Legend, Line, Plot, PlotPoints};
 
 use super::{Forms, UiCommand, labelled_text};
 use crate::ui::vm::trends::{TrendsView, WindowPreset};
@@ -27,15 +27,20 @@ pub fn trends_ui(
     export_note: Option<&str>,
     commands: &mut Vec<UiCommand>,
 ) {
-    egui::Panel::left("trend channels")
+    let picker = egui::Panel::left("trend channels")
         .resizable(true)
-        .default_size(230.0)
+        // Only the first frame takes it (egui keeps the width from then on): the width the
+        // operator left it at in the last session.
+        .default_size(view.picker_width)
         .show(ui, |ui| {
+            // Fill the width given: otherwise the panel shrinks to its widest label and the
+            // width the operator left it at is not the width it keeps.
+            ui.set_min_width(ui.available_width());
             ui.heading("Channels");
             egui::ScrollArea::vertical().show(ui, |ui| {
                 for group in &view.groups {
-                    egui::CollapsingHeader::new(&group.title)
-                        .default_open(!group.title.contains("reference"))
+                    let folding = egui::CollapsingHeader::new(&group.title)
+                        .open(Some(group.open))
                         .show(ui, |ui| {
                             for choice in &group.channels {
                                 let mut selected = choice.selected;
@@ -44,9 +49,17 @@ pub fn trends_ui(
                                 }
                             }
                         });
+                    // The settings hold whether a group is open, so it survives a restart.
+                    if folding.header_response.clicked() {
+                        commands.push(UiCommand::SetGroupOpen(group.title.clone(), !group.open));
+                    }
                 }
             });
         });
+    let width = picker.response.rect.width();
+    if (width - view.picker_width).abs() >= 0.5 {
+        commands.push(UiCommand::SetPickerWidth(width));
+    }
     egui::CentralPanel::default().show(ui, |ui| {
         ui.horizontal_wrapped(|ui| {
             ui.label("Window:");
@@ -114,11 +127,24 @@ pub fn plots_ui(
     for plot_view in &view.plots {
         let first_colour = colour;
         colour += plot_view.series.len();
+        let plot_id = egui::Id::unique(("trend plot", &plot_view.unit));
+        // The settings say which series are off (the plot's own memory would forget it at a
+        // restart); the legend keeps listing them, unticked, and the plot leaves out what its
+        // memory of the previous pass says is hidden (so on a window's very first frame a
+        // hidden series shows for that one frame). Items are known by their name.
+        let hidden = plot_view
+            .series
+            .iter()
+            .filter(|s| s.hidden)
+            .map(|s| ItemId::new(&s.label));
         let response = Plot::new(("trend plot", &plot_view.unit))
+            .id(plot_id)
             .height(height)
             .legend(
                 // The band shares its series' name; the legend shows the line's colour.
-                Legend::default().color_conflict_handling(ColorConflictHandling::PickFirst),
+                Legend::default()
+                    .color_conflict_handling(ColorConflictHandling::PickFirst)
+                    .hidden_items(hidden),
             )
             .link_axis(egui::Id::unique("trend time axis"), [true, false])
             .link_cursor(egui::Id::unique("trend time axis"), [true, false])
@@ -156,6 +182,15 @@ pub fn plots_ui(
                 }
             });
         if let Some(commands) = commands.as_deref_mut() {
+            // A click in the legend changed the plot's memory of hidden items this frame.
+            if let Some(memory) = egui_plot::PlotMemory::load(ui.ctx(), plot_id) {
+                for series in &plot_view.series {
+                    let hidden = memory.hidden_items.contains(&ItemId::new(&series.label));
+                    if hidden != series.hidden {
+                        commands.push(UiCommand::SetSeriesHidden(series.channel.clone(), hidden));
+                    }
+                }
+            }
             let interacted = response.response.dragged()
                 || (response.response.hovered()
                     && ui.input(|i| {

@@ -1,5 +1,6 @@
 //! The Overview: one card per axis with its live servo readings and a normal / warning / fault
 //! light with the reasons.
+#![allow(non_snake_case)] // unit suffixes are part of the names
 
 use serde::Serialize;
 
@@ -122,6 +123,11 @@ pub fn axis_condition(state: &HmiState, axis: AxisId) -> Light {
             ));
         }
     }
+    for (reading, reason) in load_readings(state, axis) {
+        if let Some(reason) = reason {
+            reasons.push((reading.severity, reason));
+        }
+    }
     if let Some((reading, Some(reason))) = preload_reading(state, axis) {
         reasons.push((reading.severity, reason));
     }
@@ -179,6 +185,85 @@ fn estimate_readings(state: &HmiState, axis: AxisId) -> Vec<(Reading, Severity, 
             ))
         })
         .collect()
+}
+
+/// The axial load on a feed axis's front (fixed) bearing and nut as a share of their ratings,
+/// from the estimated nut torque (the torque split) and the profile: the readings, each with a
+/// reason for the light when it is at or above a limit. The warning is the profile's
+/// depth-of-cut margin of the limit (what the depth recommendation allows itself), the fault the
+/// limit: the bearing's static safety C₀ / s₀ and the load at which the nut loses its preload.
+/// Empty without a profile, a nut or a live split estimate: no number is better than a made-up
+/// one.
+fn load_readings(state: &HmiState, axis: AxisId) -> Vec<(Reading, Option<String>)> {
+    use crate::estimators::depth_of_cut::{axial_load_from_nut_torque_N, axial_load_limits};
+    let Some(profile) = state.profile.as_ref() else {
+        return Vec::new();
+    };
+    let Some(axis_profile) = profile.axes.get(&axis) else {
+        return Vec::new();
+    };
+    let settings = &profile.depth_of_cut;
+    let nut_torque = state
+        .latest
+        .get(&format!("{}{axis}.nut_torque_Nm", super::ESTIMATE_PREFIX))
+        .filter(|v| v.is_finite());
+    let (Some(load_N), Some(limits)) = (
+        nut_torque.and_then(|t| axial_load_from_nut_torque_N(axis_profile, t)),
+        axial_load_limits(axis_profile, settings.bearing_static_safety),
+    ) else {
+        return Vec::new();
+    };
+    let judge = |label: &str, limit_N: f64, limit_name: String| {
+        let (severity, share) = if load_N >= limit_N {
+            (Severity::Fault, String::new())
+        } else if load_N >= settings.margin * limit_N {
+            (
+                Severity::Warning,
+                format!("{:.0} % of ", 100.0 * settings.margin),
+            )
+        } else {
+            return (Severity::Normal, None);
+        };
+        let reason = format!(
+            "{label} (estimated) {load_N:.0} N axial at or above {share}{limit_name} {limit_N:.0} N"
+        );
+        (severity, Some(reason))
+    };
+    let bearing_C = axis_profile.front_bearing.dynamic_load_rating_N;
+    let (bearing_severity, bearing_reason) = judge(
+        "front bearing load",
+        limits.fixed_bearing_static_N,
+        format!(
+            "the bearing's static-safety limit C₀/{}",
+            settings.bearing_static_safety
+        ),
+    );
+    let (nut_severity, nut_reason) = judge(
+        "nut load",
+        limits.nut_preload_loss_N,
+        "the nut's preload-loss limit".into(),
+    );
+    vec![
+        (
+            Reading {
+                label: "front bearing load (estimated)".into(),
+                value: number(Some(100.0 * load_N / bearing_C), 1),
+                unit: format!("% of rating C ({load_N:.0} N axial)"),
+                severity: bearing_severity,
+            },
+            bearing_reason,
+        ),
+        (
+            Reading {
+                label: "nut load (estimated)".into(),
+                value: number(Some(100.0 * load_N / limits.nut_preload_loss_N), 1),
+                // The axial newtons are on the bearing's line: the same load, said once.
+                unit: "% of preload-loss limit".into(),
+                severity: nut_severity,
+            },
+            nut_reason,
+        ),
+    ]
 }
 
 /// The preload state of a feed axis from the shift's warm-up analysis (its friction fingerprint
@@ -292,6 +377,7 @@ pub fn build(state: &HmiState) -> OverviewView {
                 }
             })
             .chain(estimate_readings(state, axis).into_iter().map(|r| r.0))
+            .chain(load_readings(state, axis).into_iter().map(|r| r.0))
             .chain(preload_reading(state, axis).map(|r| r.0))
             .collect();
             AxisCard {

@@ -1,6 +1,7 @@
 //! Trends: time series of the chosen channels over a time window, one plot per unit, drawn
 //! from the history's decimation pyramid (bucket means with their min / max band).
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::Path;
 
@@ -59,18 +60,34 @@ impl WindowPreset {
     }
 }
 
-/// What the operator chose on the Trends panel (persisted with the layout).
+/// Default width of the channel picker, points.
+pub const PICKER_WIDTH: f32 = 230.0;
+
+/// What the operator chose on the Trends panel (persisted with the layout). Fields missing
+/// from a settings file written by an older version take their defaults.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct TrendsSettings {
     /// Channels drawn, by column name.
     pub selected: Vec<String>,
     /// The window preset.
     pub preset: WindowPreset,
-    /// Follow the newest sample (off once the operator zooms or pans).
+    /// Follow the newest sample (off once the operator zooms or pans). Not persisted, like the
+    /// zoom itself: a past session's time range means nothing after a restart, so the plots
+    /// start out following.
+    #[serde(skip)]
     pub follow_live: bool,
     /// The time range the operator zoomed or panned to, s (used when not following).
     #[serde(skip)]
     pub view: Option<(f64, f64)>,
+    /// Series the operator switched off in a plot's legend (still chosen, not drawn), by
+    /// column name.
+    pub hidden: BTreeSet<String>,
+    /// Picker groups the operator opened or closed, by title; the others keep their default
+    /// (reference instruments closed, the rest open).
+    pub groups_open: BTreeMap<String, bool>,
+    /// Width of the channel picker, points (`None`: [`PICKER_WIDTH`]).
+    pub picker_width: Option<f32>,
 }
 
 impl Default for TrendsSettings {
@@ -80,6 +97,9 @@ impl Default for TrendsSettings {
             preset: WindowPreset::TenMinutes,
             follow_live: true,
             view: None,
+            hidden: BTreeSet::new(),
+            groups_open: BTreeMap::new(),
+            picker_width: None,
         }
     }
 }
@@ -100,6 +120,8 @@ pub struct ChannelChoice {
 pub struct ChannelGroup {
     /// "X axis".
     pub title: String,
+    /// Unfolded in the picker.
+    pub open: bool,
     /// Its channels.
     pub channels: Vec<ChannelChoice>,
 }
@@ -119,6 +141,8 @@ pub struct SeriesView {
     /// `[time_s, min]` and `[time_s, max]` per point, when points are buckets of several
     /// samples.
     pub band: Option<(Points, Points)>,
+    /// Switched off in the plot's legend: listed there, not drawn.
+    pub hidden: bool,
 }
 
 /// One plot: the chosen series that share a unit.
@@ -149,6 +173,8 @@ pub struct StraightnessView {
 pub struct TrendsView {
     /// The picker.
     pub groups: Vec<ChannelGroup>,
+    /// The picker's width, points.
+    pub picker_width: f32,
     /// The window preset.
     pub preset: WindowPreset,
     /// Following the newest sample.
@@ -251,6 +277,13 @@ pub fn build(state: &HmiState, settings: &TrendsSettings, max_points: usize) -> 
         match groups.iter_mut().find(|g| g.title == title) {
             Some(group) => group.channels.push(choice),
             None => groups.push(ChannelGroup {
+                // Reference instruments are for calibration, not for watching the machine:
+                // folded away unless the operator opened them.
+                open: settings
+                    .groups_open
+                    .get(&title)
+                    .copied()
+                    .unwrap_or(!title.contains("reference")),
                 title,
                 channels: vec![choice],
             }),
@@ -305,6 +338,7 @@ pub fn build(state: &HmiState, settings: &TrendsSettings, max_points: usize) -> 
             label: labelled(name),
             points,
             band,
+            hidden: settings.hidden.contains(name),
         };
         let u = unit(name);
         match plots.iter_mut().find(|p| p.unit == u) {
@@ -317,6 +351,11 @@ pub fn build(state: &HmiState, settings: &TrendsSettings, max_points: usize) -> 
     }
     TrendsView {
         groups,
+        // A width saved on a larger screen (or a broken file) must not hide the plots.
+        picker_width: settings
+            .picker_width
+            .filter(|w| w.is_finite())
+            .map_or(PICKER_WIDTH, |w| w.clamp(120.0, 800.0)),
         preset: settings.preset,
         follow_live: settings.follow_live,
         t0,
