@@ -398,6 +398,88 @@ fn loaded_state(nut_Nm: f64) -> HmiState {
     s
 }
 
+/// A state whose estimates include each axis's motor abnormality score (`NaN`: not yet known).
+fn abnormality_state(x_pct: f64, s_pct: f64) -> HmiState {
+    let base = state("normal");
+    let mut names = names();
+    names.extend(["est.X.abnormality_pct", "est.S.abnormality_pct"].map(String::from));
+    let mut s = HmiState::new(names, base.link.clone(), 1 << 20, base.compensation);
+    s.profile = Some(twin_profile());
+    s.estimate_limits = base.estimate_limits;
+    for i in 0..=20 {
+        let mut row = row(700.0 + f64::from(i) * 0.5, 41.3, 55.0, 30.0);
+        row.extend([x_pct, s_pct]);
+        s.push_row(&row);
+    }
+    s
+}
+
+/// Each card shows its axis's motor abnormality score — the friction torque against the
+/// healthy model — judged against the profile's levels (X ±4 / ±12 %, spindle ±8 / ±25 %): not
+/// yet known until enough steady running, a warning with the likely cause, a fault either way
+/// (less friction than healthy is lost preload). The warm-up checklist's "no abnormality" step
+/// follows the lights.
+#[test]
+fn overview_shows_the_motor_abnormality_score() {
+    let card = |s: &HmiState, axis: &str| {
+        vm::overview::build(s)
+            .cards
+            .into_iter()
+            .find(|c| c.axis == axis)
+            .unwrap_or_else(|| panic!("a {axis} card"))
+    };
+    let reading = |card: &vm::overview::AxisCard| {
+        card.readings
+            .iter()
+            .find(|r| r.label == "abnormality (friction vs healthy)")
+            .cloned()
+            .unwrap_or_else(|| panic!("no abnormality line on {card:?}"))
+    };
+    let healthy = abnormality_state(f64::NAN, 1.4);
+    let x = card(&healthy, "X");
+    assert_eq!(reading(&x).value, "not yet known (needs steady running)");
+    assert_eq!(x.light.severity, Severity::Normal, "{:?}", x.light);
+    let s = card(&healthy, "S");
+    assert_eq!(
+        (reading(&s).value.as_str(), reading(&s).unit.as_str()),
+        ("+1.4", "%")
+    );
+    assert_eq!(s.light.severity, Severity::Normal, "{:?}", s.light);
+
+    let worn = abnormality_state(-21.0, 19.7);
+    let s = card(&worn, "S");
+    assert_eq!(reading(&s).severity, Severity::Warning);
+    assert!(
+        s.light.reasons.iter().any(|r| r
+            == "motor abnormality on S: friction torque +19.7 % against the healthy model \
+                (beyond the warning level ±8 %): wear, damage or failing lubrication?"),
+        "{:?}",
+        s.light
+    );
+    let x = card(&worn, "X");
+    assert_eq!(x.light.severity, Severity::Fault);
+    assert!(
+        x.light
+            .reasons
+            .iter()
+            .any(|r| r.contains("friction torque -21.0 %")
+                && r.ends_with("fault level ±12 %): lost preload?")),
+        "{:?}",
+        x.light
+    );
+    insta::assert_yaml_snapshot!("overview_abnormality", vm::overview::build(&worn));
+    let step = vm::warmup::build(&worn)
+        .steps
+        .into_iter()
+        .find(|s| s.title.starts_with("4."))
+        .expect("the no-abnormality step");
+    assert!(
+        step.reason.contains("motor abnormality on X"),
+        "{}",
+        step.reason
+    );
+}
+
 /// A feed axis's card shows the axial load on its front bearing (as a share of the bearing's
 /// dynamic rating C) and on its nut (as a share of the load at which it loses its preload),
 /// from the estimated nut torque; at the depth-of-cut margin of a limit the light warns, at the

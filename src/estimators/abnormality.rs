@@ -413,6 +413,28 @@ impl AbnormalityState {
     }
 }
 
+/// The state of a known excess friction `pct` against the profile's levels (either way).
+pub fn classify(pct: f64, levels: Threshold) -> AbnormalityState {
+    if !pct.is_finite() {
+        AbnormalityState::NotYetKnown
+    } else if pct.abs() >= levels.fault {
+        AbnormalityState::Fault
+    } else if pct.abs() >= levels.warning {
+        AbnormalityState::Warning
+    } else {
+        AbnormalityState::Normal
+    }
+}
+
+/// What an abnormal excess friction most likely means, in words.
+pub fn likely_cause(pct: f64) -> &'static str {
+    if pct > 0.0 {
+        "wear, damage or failing lubrication?"
+    } else {
+        "lost preload?"
+    }
+}
+
 /// Judges a score against the profile's levels (in % of the ideal friction torque, either
 /// way: more friction than healthy is wear or damage, less is lost preload); the state and the
 /// reason in words.
@@ -429,23 +451,14 @@ pub fn judge(score: &AbnormalityScore, levels: Threshold) -> (AbnormalityState, 
             ),
         );
     }
-    let state = if pct.abs() >= levels.fault {
-        AbnormalityState::Fault
-    } else if pct.abs() >= levels.warning {
-        AbnormalityState::Warning
-    } else {
-        AbnormalityState::Normal
-    };
+    let state = classify(pct, levels);
     let mut reason = format!(
         "friction torque {pct:+.1} % ± {:.1} % against the healthy model ({:+.3} N·m on {:.3} N·m)",
         score.standard_error_pct, score.excess_Nm, score.ideal_Nm
     );
     if state > AbnormalityState::Normal {
-        reason.push_str(if pct > 0.0 {
-            ": wear, damage or failing lubrication?"
-        } else {
-            ": lost preload?"
-        });
+        reason.push_str(": ");
+        reason.push_str(likely_cause(pct));
     }
     (state, reason)
 }

@@ -131,6 +131,9 @@ pub fn axis_condition(state: &HmiState, axis: AxisId) -> Light {
     if let Some((reading, Some(reason))) = preload_reading(state, axis) {
         reasons.push((reading.severity, reason));
     }
+    if let Some((reading, Some(reason))) = abnormality_reading(state, axis) {
+        reasons.push((reading.severity, reason));
+    }
     reasons.sort_by_key(|r| std::cmp::Reverse(r.0));
     let severity = reasons.first().map_or(Severity::Normal, |r| r.0);
     let reasons = if reasons.is_empty() {
@@ -323,6 +326,49 @@ fn preload_reading(state: &HmiState, axis: AxisId) -> Option<(Reading, Option<St
     })
 }
 
+/// The motor abnormality score of an axis (excess friction torque against its healthy ideal
+/// torque, `est.<axis>.abnormality_pct`), judged against the profile's levels: the reading and,
+/// at or beyond the warning level, the reason for the light. `None` when the pipeline has no
+/// abnormality model for the axis.
+fn abnormality_reading(state: &HmiState, axis: AxisId) -> Option<(Reading, Option<String>)> {
+    use crate::estimators::abnormality::{AbnormalityState, classify, likely_cause};
+    let column = format!("{}{axis}.abnormality_pct", super::ESTIMATE_PREFIX);
+    if !state.latest.names.contains(&column) {
+        return None;
+    }
+    let levels = state.estimate_limits.get(&axis)?.abnormality;
+    let pct = state.latest.get(&column).unwrap_or(f64::NAN);
+    let abnormality = classify(pct, levels);
+    let severity = match abnormality {
+        AbnormalityState::NotYetKnown | AbnormalityState::Normal => Severity::Normal,
+        AbnormalityState::Warning => Severity::Warning,
+        AbnormalityState::Fault => Severity::Fault,
+    };
+    let reading = Reading {
+        label: "abnormality (friction vs healthy)".into(),
+        value: if pct.is_finite() {
+            format!("{pct:+.1}")
+        } else {
+            "not yet known (needs steady running)".into()
+        },
+        unit: if pct.is_finite() { "%" } else { "" }.into(),
+        severity,
+    };
+    let reason = (severity != Severity::Normal).then(|| {
+        let level = if severity == Severity::Fault {
+            format!("fault level ±{:.0} %", levels.fault)
+        } else {
+            format!("warning level ±{:.0} %", levels.warning)
+        };
+        format!(
+            "motor abnormality on {axis}: friction torque {pct:+.1} % against the healthy model \
+             (beyond the {level}): {}",
+            likely_cause(pct)
+        )
+    });
+    Some((reading, reason))
+}
+
 fn stator_severity(state: &HmiState, value: Option<f64>) -> Severity {
     let limits = state.thresholds.stator_temp_c;
     match value {
@@ -379,6 +425,7 @@ pub fn build(state: &HmiState) -> OverviewView {
             .chain(estimate_readings(state, axis).into_iter().map(|r| r.0))
             .chain(load_readings(state, axis).into_iter().map(|r| r.0))
             .chain(preload_reading(state, axis).map(|r| r.0))
+            .chain(abnormality_reading(state, axis).map(|r| r.0))
             .collect();
             AxisCard {
                 axis: axis.to_string(),

@@ -11,7 +11,8 @@
 //!    than normal fails;
 //! 3. backlash measured — the backlash test's result against `backlash_um`, its confidence,
 //!    and the controller's backlash compensation;
-//! 4. no abnormality — every axis's light (link, stator, estimated temperatures, elongation);
+//! 4. no abnormality — every axis's light (link, stator, estimated temperatures, loads,
+//!    elongation, motor abnormality score);
 //! 5. elongation compensated — the spindle elongation left after the controller's thermal
 //!    offset, against `elongation_tolerance_um`.
 
@@ -566,7 +567,7 @@ fn no_abnormality(state: &HmiState) -> StepView {
     let mut step = StepView {
         id: StepId::NoAbnormality,
         title: "4. No abnormality".into(),
-        instruction: "Every axis light must be normal: stator, estimated temperatures and elongation within the profile's limits, link live.".into(),
+        instruction: "Every axis light must be normal: stator, estimated temperatures, loads and elongation within the profile's limits, friction torque within the abnormality levels of the healthy model, link live.".into(),
         status: StepStatus::Pending,
         reason: String::new(),
         values: Vec::new(),
