@@ -50,7 +50,8 @@ fn five_axis_setup() -> (MachineProfile, Schema, Vec<Vec<f64>>) {
             names
                 .iter()
                 .map(|name| {
-                    let from = if name == "time_s" || name == "ambient_C" || name == "cut_depth_mm" {
+                    let from = if name == "time_s" || name == "ambient_C" || name == "cut_depth_mm"
+                    {
                         name.clone()
                     } else {
                         // Y, Z and C replay X's and S's signals.
