@@ -1004,7 +1004,8 @@ fn compensate_cli_applies_with_an_approver_and_audit_verify_catches_an_edit() {
 fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
     require_tools();
     let dir = tempfile::tempdir().unwrap();
-    // A recording with every column of the map: stator temperatures ramp 20 → 40 °C.
+    // A recording with every column of the map: stator temperatures ramp 20 → 40 °C, and the
+    // tool cuts 1.25 mm deep for a quarter second every half second.
     let columns = register_map::sample_columns();
     let mut text = columns.join(",") + "\n";
     for i in 0..=200 {
@@ -1014,6 +1015,7 @@ fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
                 "time_s" => format!("{}", i as f64 * 0.05),
                 n if n.ends_with("stator_temp_C") => format!("{}", 20.0 + i as f64 * 0.1),
                 "coolant_on" => "1".into(),
+                CUT_DEPTH if i % 10 >= 5 => "1.25".into(),
                 _ => "0".into(),
             })
             .collect();
@@ -1054,6 +1056,13 @@ fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
         "the replay advances"
     );
     assert_eq!(link.status().stats.lost_samples, 0);
+    let depth = link.schema().index_of(CUT_DEPTH).unwrap();
+    let depths: Vec<f64> = frames.iter().map(|f| f.row[depth]).collect();
+    assert!(
+        depths.contains(&1.25) && depths.contains(&0.0),
+        "{depths:?}"
+    );
+    assert!(depths.iter().all(|d| *d == 0.0 || *d == 1.25), "{depths:?}");
 
     let offset = CompensationId::ThermalOffset(AxisId::Z);
     let approved = Request::new(proposal(&[(offset, -15.0)]), "otto")
@@ -1071,6 +1080,31 @@ fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
 }
 
 #[test]
+fn sim_controller_refuses_a_recording_without_the_depth_of_cut() {
+    // Serving it would put 0 ("not cutting") on the line for every cut in the file.
+    let dir = tempfile::tempdir().unwrap();
+    let columns: Vec<String> = register_map::sample_columns()
+        .into_iter()
+        .filter(|c| c != CUT_DEPTH)
+        .collect();
+    let row = vec!["1"; columns.len()].join(",");
+    let source = dir.path().join("old.csv");
+    std::fs::write(&source, format!("{}\n{row}\n", columns.join(","))).unwrap();
+    let output = servosight()
+        .arg("sim-controller")
+        .arg("--port")
+        .arg(dir.path().join("no-such-port"))
+        .arg("--replay")
+        .arg(&source)
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("no column `cut_depth_mm`"), "{stderr}");
+    assert!(stderr.contains("servosight --replay"), "{stderr}");
+}
+
+#[test]
 fn sim_controller_serves_the_twin_with_z_at_rest() {
     require_tools();
     let dir = tempfile::tempdir().unwrap();
@@ -1082,7 +1116,7 @@ fn sim_controller_serves_the_twin_with_z_at_rest() {
                 "--scenario",
                 "production",
                 "--speed",
-                "120",
+                "600",
             ])
             .arg("--port")
             .arg(&pair.b)
@@ -1093,9 +1127,11 @@ fn sim_controller_serves_the_twin_with_z_at_rest() {
     let mut link = ControllerLink::modbus(config(&pair.a, 50.0)).unwrap();
     let mut frames = Vec::new();
     wait_connected(&mut link, &mut frames);
+    // 600×: the shift's 15-minute spindle warm-up (no cutting) is over after 1.5 s, and the
+    // first part's roughing follows.
     pump(
         &mut link,
-        Duration::from_secs(3),
+        Duration::from_secs(4),
         &mut |f| frames.push(f),
         |_| false,
     );
@@ -1109,8 +1145,18 @@ fn sim_controller_serves_the_twin_with_z_at_rest() {
     let x_position = column(AxisId::X, Quantity::Position);
     assert!(
         x_position.iter().any(|p| (p - x_position[0]).abs() > 1e-3),
-        "X never moved in 6 simulated minutes"
+        "X never moved in 40 simulated minutes"
     );
+    // The twin's depth of cut reaches the client: 0 out of the cut, the programmed depth
+    // (0.2 to 4 mm on this twin) in it.
+    let depth_index = schema.index_of(CUT_DEPTH).unwrap();
+    let depths: Vec<f64> = frames.iter().map(|f| f.row[depth_index]).collect();
+    assert!(depths.contains(&0.0), "never out of the cut");
+    assert!(
+        depths.iter().any(|d| (0.2..=4.0).contains(d)),
+        "the twin never cut in 40 simulated minutes"
+    );
+    assert!(depths.iter().all(|d| *d == 0.0 || (0.2..=4.0).contains(d)));
     assert!(
         column(AxisId::S, Quantity::StatorTemp)
             .iter()
