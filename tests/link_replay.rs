@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use servosight::link::{
     ConnectionState, ControllerLink, Frame, LinkError, ReplayOptions, ReplaySpeed,
 };
+use servosight::signal::AxisId;
 
 /// A recording of `rows` rows at 100 Hz.
 fn write_recording(path: &Path, rows: usize) {
@@ -130,7 +131,6 @@ fn the_embedded_twin_streams_and_takes_compensation() {
     use servosight::compensation::{
         self, AuditLog, CompensationId, CompensationLimits, Credentials, Proposal, Request, Role,
     };
-    use servosight::signal::AxisId;
     let config =
         servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, Some(1.0), 7);
     let mut link = ControllerLink::twin(
@@ -170,5 +170,140 @@ fn the_embedded_twin_streams_and_takes_compensation() {
     assert_eq!(
         link.read_compensation().wait().unwrap().get(backlash),
         Some(7.0)
+    );
+}
+
+/// The shipped profile of the embedded twin (it has abnormality models for X and S).
+fn twin_profile() -> servosight::profile::MachineProfile {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/it25-twin.toml");
+    servosight::profile::MachineProfile::load(Path::new(path)).expect("twin profile")
+}
+
+/// The abnormality outputs a pipeline built on `schema` has, and its notes.
+fn abnormality_columns(schema: &servosight::signal::Schema) -> (Vec<String>, Vec<String>) {
+    let pipeline = servosight::estimators::EstimatorPipeline::new(&twin_profile(), schema)
+        .expect("the twin profile fits the schema");
+    let columns = pipeline
+        .outputs()
+        .into_iter()
+        .map(|o| o.column)
+        .filter(|c| c.ends_with(".abnormality_pct"))
+        .collect();
+    (columns, pipeline.notes().to_vec())
+}
+
+#[test]
+fn every_link_schema_carries_the_depth_of_cut_so_abnormality_is_scored() {
+    use servosight::link::register_map;
+    use servosight::signal::channel::CUT_DEPTH;
+    let expected = ["est.X.abnormality_pct", "est.S.abnormality_pct"];
+    // A controller over Modbus (and the sim-controller serving the twin): the map's schema.
+    let modbus = register_map::sample_schema();
+    assert!(modbus.index_of(CUT_DEPTH).is_some());
+    let (columns, notes) = abnormality_columns(&modbus);
+    assert_eq!(columns, expected, "{notes:?}");
+    assert!(
+        !notes.iter().any(|n| n.contains("no abnormality score")),
+        "{notes:?}"
+    );
+    // The embedded twin the HMI opens by default.
+    let config =
+        servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, None, 7);
+    let link =
+        ControllerLink::twin(config, ReplaySpeed::Factor(1.0), Duration::from_secs(1)).unwrap();
+    let (columns, notes) = abnormality_columns(link.schema());
+    assert_eq!(columns, expected, "{notes:?}");
+    assert!(notes.is_empty(), "{notes:?}");
+    // A replayed recording without the column: nothing is invented, the pipeline says why.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.csv");
+    let names: Vec<String> = register_map::sample_columns()
+        .into_iter()
+        .filter(|c| c != CUT_DEPTH)
+        .collect();
+    std::fs::write(
+        &path,
+        format!(
+            "{}\n{}\n",
+            names.join(","),
+            vec!["1"; names.len()].join(",")
+        ),
+    )
+    .unwrap();
+    let link = ControllerLink::replay(&path, ReplayOptions::default()).unwrap();
+    assert!(link.schema().index_of(CUT_DEPTH).is_none());
+    let (columns, notes) = abnormality_columns(link.schema());
+    assert!(columns.is_empty(), "{columns:?}");
+    assert_eq!(notes.len(), 2, "{notes:?}");
+    assert!(
+        notes
+            .iter()
+            .all(|n| n.contains("no abnormality score") && n.contains(CUT_DEPTH)),
+        "{notes:?}"
+    );
+}
+
+#[test]
+fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
+    use servosight::compensation::CompensationLimits;
+    use servosight::ui::session::SessionUpdate;
+    use servosight::ui::{Session, SessionConfig, SourceSpec};
+    let dir = tempfile::tempdir().unwrap();
+    // The HMI's default source: the production program, paced fast so the spindle's steady
+    // shift-start warm-up (15 simulated minutes, no cutting) passes in about a second.
+    let twin = servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, None, 7);
+    let mut session = Session::start(SessionConfig {
+        source: SourceSpec::Twin {
+            config: Box::new(twin),
+            speed: ReplaySpeed::Factor(1000.0),
+        },
+        record_dir: None,
+        users_path: dir.path().join("users.toml"),
+        audit_path: dir.path().join("audit.jsonl"),
+        limits: CompensationLimits::default(),
+        profile: Some(twin_profile()),
+        data_dir: dir.path().join("data"),
+    })
+    .expect("session starts");
+    let schema = session.schema().clone();
+    let spindle = schema
+        .index_of("est.S.abnormality_pct")
+        .expect("the session has the spindle's abnormality score");
+    assert!(schema.index_of("est.X.abnormality_pct").is_some());
+    assert!(
+        schema
+            .index_of(servosight::signal::channel::CUT_DEPTH)
+            .is_some()
+    );
+    // The score is reported once its standard error is small enough: it must become a number
+    // on the healthy twin, and stay within the profile's normal band (the twin is healthy).
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let mut scored = None;
+    let mut warnings = Vec::new();
+    while Instant::now() < deadline && scored.is_none() {
+        while let Some(update) = session.try_recv() {
+            match update {
+                SessionUpdate::Frames(batch) => {
+                    for row in &batch.rows {
+                        if row[spindle].is_finite() {
+                            scored = Some((row[0], row[spindle]));
+                        }
+                    }
+                }
+                SessionUpdate::Event(event) => warnings.push(format!("{event:?}")),
+                _ => {}
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let (time_s, pct) = scored.unwrap_or_else(|| panic!("no spindle score; events: {warnings:?}"));
+    let warning = twin_profile().axes[&AxisId::S].limits.abnormality.warning;
+    assert!(
+        pct.abs() < warning,
+        "the healthy spindle scored {pct} % at {time_s} s (warning at {warning} %)"
+    );
+    assert!(
+        !warnings.iter().any(|w| w.contains("estimators off")),
+        "{warnings:?}"
     );
 }

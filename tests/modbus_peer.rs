@@ -22,6 +22,7 @@ use servosight::link::recorder::{LOST_BEFORE_COLUMN, SEQUENCE_COLUMN};
 use servosight::link::{
     ConnectionState, ControllerLink, Frame, ModbusConfig, Recorder, RecorderConfig, register_map,
 };
+use servosight::signal::channel::CUT_DEPTH;
 use servosight::signal::{AxisId, Quantity, axis_column, read_recording};
 
 const INSTALL: &str = "apt-get install -y socat && pip install 'pymodbus==3.*' pyserial";
@@ -101,11 +102,21 @@ fn pty_pair(dir: &Path, name: &str) -> PtyPair {
 struct PeerOptions {
     no_echo: bool,
     sequence_start: Option<u32>,
+    /// A raw word for the depth-of-cut register instead of the peer's alternating cut.
+    cut_depth_raw: Option<u16>,
+    /// Serve this map instead of servosight's (a controller implementing another version).
+    map: Option<serde_json::Value>,
 }
 
-fn map_json(dir: &Path) -> PathBuf {
+/// The depth of cut the peer publishes while "cutting" (tests/peers/modbus_peer.py).
+const PEER_CUT_DEPTH_MM: f64 = 2.345;
+
+fn map_json(dir: &Path, map: Option<&serde_json::Value>) -> PathBuf {
     let path = dir.join("map.json");
-    let json = serde_json::to_string_pretty(&register_map::describe()).unwrap();
+    let json = match map {
+        Some(map) => serde_json::to_string_pretty(map).unwrap(),
+        None => serde_json::to_string_pretty(&register_map::describe()).unwrap(),
+    };
     std::fs::write(&path, json).unwrap();
     path
 }
@@ -118,7 +129,7 @@ fn start_peer(dir: &Path, port: &Path, options: &PeerOptions) -> Process {
         .arg("--port")
         .arg(port)
         .arg("--map")
-        .arg(map_json(dir))
+        .arg(map_json(dir, options.map.as_ref()))
         .arg("--write-log")
         .arg(dir.join("peer-writes.jsonl"))
         .stdout(Stdio::null())
@@ -130,6 +141,9 @@ fn start_peer(dir: &Path, port: &Path, options: &PeerOptions) -> Process {
     }
     if let Some(start) = options.sequence_start {
         command.arg("--sequence-start").arg(start.to_string());
+    }
+    if let Some(raw) = options.cut_depth_raw {
+        command.arg("--cut-depth-raw").arg(raw.to_string());
     }
     let child = command
         .spawn()
@@ -193,6 +207,12 @@ fn assert_plausible(schema: &servosight::signal::Schema, frame: &Frame) {
     let value = |name: &str| frame.row[schema.index_of(name).unwrap()];
     assert_eq!(value("ambient_C"), 21.5, "{frame:?}");
     assert_eq!(value("coolant_on"), 1.0, "{frame:?}");
+    // Exactly the peer's depth (0.001 mm resolution) or 0 between cuts, nothing in between.
+    let depth = value(CUT_DEPTH);
+    assert!(
+        depth == 0.0 || depth == PEER_CUT_DEPTH_MM,
+        "cut depth {depth}: {frame:?}"
+    );
     for axis in register_map::MAPPED_AXES {
         let temp = value(&axis_column(axis, Quantity::StatorTemp));
         assert!((24.99..=35.01).contains(&temp), "{axis} stator {temp}");
@@ -251,6 +271,10 @@ fn peer_streams_frames_and_an_approved_write_is_read_back() {
     for frame in &frames {
         assert_plausible(link.schema(), frame);
     }
+    // The depth of cut crossed the line both ways: cutting and between cuts.
+    let depth = link.schema().index_of(CUT_DEPTH).unwrap();
+    assert!(frames.iter().any(|f| f.row[depth] == PEER_CUT_DEPTH_MM));
+    assert!(frames.iter().any(|f| f.row[depth] == 0.0));
 
     let backlash = CompensationId::Backlash(AxisId::X);
     let tool = CompensationId::ThermalOffset(AxisId::S);
@@ -297,6 +321,63 @@ fn peer_streams_frames_and_an_approved_write_is_read_back() {
         audit.entries().unwrap()[3]
             .action
             .starts_with("rollback of ")
+    );
+}
+
+/// Polls a peer whose every sample must be refused: no frame may arrive, and the refusals are
+/// counted with `expected` in the link's last error.
+fn assert_every_sample_refused(options: PeerOptions, expected: &str) {
+    require_tools();
+    let dir = tempfile::tempdir().unwrap();
+    let pair = pty_pair(dir.path(), "line");
+    let _peer = start_peer(dir.path(), &pair.b, &options);
+    let mut link = ControllerLink::modbus(config(&pair.a, 100.0)).unwrap();
+    let mut frames = Vec::new();
+    pump(
+        &mut link,
+        Duration::from_secs(10),
+        &mut |f| frames.push(f),
+        |l| l.status().stats.implausible_samples >= 20,
+    );
+    let status = link.status();
+    assert!(
+        status.stats.implausible_samples >= 20,
+        "the peer's samples were not refused: {status:?}"
+    );
+    assert!(frames.is_empty(), "{} frames got through", frames.len());
+    assert_ne!(status.state, ConnectionState::Connected, "{status:?}");
+    let error = status.last_error.unwrap_or_default();
+    assert!(error.contains(expected), "{error}");
+}
+
+#[test]
+fn peer_with_an_implausible_depth_of_cut_is_refused_naming_the_register() {
+    // 0xFFFF reads as 65.535 mm: beyond any cut, a garbled or "no value" word.
+    assert_every_sample_refused(
+        PeerOptions {
+            cut_depth_raw: Some(0xFFFF),
+            ..PeerOptions::default()
+        },
+        "register 7 (cut_depth_mm): 65.535 is outside its plausible range 0 to 50",
+    );
+}
+
+#[test]
+fn peer_speaking_map_version_1_without_the_depth_of_cut_is_refused() {
+    // The map as a version-1 controller implements it: no depth of cut (register 7 reads 0,
+    // which would pass for "never cutting"), version 1.
+    let mut map = serde_json::to_value(register_map::describe()).unwrap();
+    map["version"] = 1.into();
+    map["machine"]
+        .as_array_mut()
+        .unwrap()
+        .retain(|f| f["name"] != CUT_DEPTH);
+    assert_every_sample_refused(
+        PeerOptions {
+            map: Some(map),
+            ..PeerOptions::default()
+        },
+        "the controller reports register map version 1, servosight speaks 2",
     );
 }
 
@@ -923,7 +1004,8 @@ fn compensate_cli_applies_with_an_approver_and_audit_verify_catches_an_edit() {
 fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
     require_tools();
     let dir = tempfile::tempdir().unwrap();
-    // A recording with every column of the map: stator temperatures ramp 20 → 40 °C.
+    // A recording with every column of the map: stator temperatures ramp 20 → 40 °C, and the
+    // tool cuts 1.25 mm deep for a quarter second every half second.
     let columns = register_map::sample_columns();
     let mut text = columns.join(",") + "\n";
     for i in 0..=200 {
@@ -933,6 +1015,7 @@ fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
                 "time_s" => format!("{}", i as f64 * 0.05),
                 n if n.ends_with("stator_temp_C") => format!("{}", 20.0 + i as f64 * 0.1),
                 "coolant_on" => "1".into(),
+                CUT_DEPTH if i % 10 >= 5 => "1.25".into(),
                 _ => "0".into(),
             })
             .collect();
@@ -973,6 +1056,13 @@ fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
         "the replay advances"
     );
     assert_eq!(link.status().stats.lost_samples, 0);
+    let depth = link.schema().index_of(CUT_DEPTH).unwrap();
+    let depths: Vec<f64> = frames.iter().map(|f| f.row[depth]).collect();
+    assert!(
+        depths.contains(&1.25) && depths.contains(&0.0),
+        "{depths:?}"
+    );
+    assert!(depths.iter().all(|d| *d == 0.0 || *d == 1.25), "{depths:?}");
 
     let offset = CompensationId::ThermalOffset(AxisId::Z);
     let approved = Request::new(proposal(&[(offset, -15.0)]), "otto")
@@ -990,6 +1080,31 @@ fn sim_controller_serves_a_recording_and_takes_an_approved_write() {
 }
 
 #[test]
+fn sim_controller_refuses_a_recording_without_the_depth_of_cut() {
+    // Serving it would put 0 ("not cutting") on the line for every cut in the file.
+    let dir = tempfile::tempdir().unwrap();
+    let columns: Vec<String> = register_map::sample_columns()
+        .into_iter()
+        .filter(|c| c != CUT_DEPTH)
+        .collect();
+    let row = vec!["1"; columns.len()].join(",");
+    let source = dir.path().join("old.csv");
+    std::fs::write(&source, format!("{}\n{row}\n", columns.join(","))).unwrap();
+    let output = servosight()
+        .arg("sim-controller")
+        .arg("--port")
+        .arg(dir.path().join("no-such-port"))
+        .arg("--replay")
+        .arg(&source)
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("no column `cut_depth_mm`"), "{stderr}");
+    assert!(stderr.contains("servosight --replay"), "{stderr}");
+}
+
+#[test]
 fn sim_controller_serves_the_twin_with_z_at_rest() {
     require_tools();
     let dir = tempfile::tempdir().unwrap();
@@ -1001,7 +1116,7 @@ fn sim_controller_serves_the_twin_with_z_at_rest() {
                 "--scenario",
                 "production",
                 "--speed",
-                "120",
+                "600",
             ])
             .arg("--port")
             .arg(&pair.b)
@@ -1012,9 +1127,11 @@ fn sim_controller_serves_the_twin_with_z_at_rest() {
     let mut link = ControllerLink::modbus(config(&pair.a, 50.0)).unwrap();
     let mut frames = Vec::new();
     wait_connected(&mut link, &mut frames);
+    // 600×: the shift's 15-minute spindle warm-up (no cutting) is over after 1.5 s, and the
+    // first part's roughing follows.
     pump(
         &mut link,
-        Duration::from_secs(3),
+        Duration::from_secs(4),
         &mut |f| frames.push(f),
         |_| false,
     );
@@ -1028,8 +1145,18 @@ fn sim_controller_serves_the_twin_with_z_at_rest() {
     let x_position = column(AxisId::X, Quantity::Position);
     assert!(
         x_position.iter().any(|p| (p - x_position[0]).abs() > 1e-3),
-        "X never moved in 6 simulated minutes"
+        "X never moved in 40 simulated minutes"
     );
+    // The twin's depth of cut reaches the client: 0 out of the cut, the programmed depth
+    // (0.2 to 4 mm on this twin) in it.
+    let depth_index = schema.index_of(CUT_DEPTH).unwrap();
+    let depths: Vec<f64> = frames.iter().map(|f| f.row[depth_index]).collect();
+    assert!(depths.contains(&0.0), "never out of the cut");
+    assert!(
+        depths.iter().any(|d| (0.2..=4.0).contains(d)),
+        "the twin never cut in 40 simulated minutes"
+    );
+    assert!(depths.iter().all(|d| *d == 0.0 || (0.2..=4.0).contains(d)));
     assert!(
         column(AxisId::S, Quantity::StatorTemp)
             .iter()

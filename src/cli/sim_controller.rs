@@ -21,8 +21,8 @@ pub struct Args {
     /// Slave id to answer to.
     #[arg(long, default_value_t = 1)]
     pub slave: u8,
-    /// Publish the rows of this recording (CSV v1 with every column of the register map),
-    /// looping at the end, instead of the twin.
+    /// Publish the rows of this recording (CSV v1 with every column of the register map,
+    /// `cut_depth_mm` included), looping at the end, instead of the twin.
     #[arg(long)]
     pub replay: Option<PathBuf>,
     /// Twin program: warmup, production, backlash-test or doe (the twin publishes Z at rest:

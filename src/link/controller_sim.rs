@@ -237,6 +237,13 @@ pub struct RecordingSource {
 
 impl RecordingSource {
     /// Maps the recording's columns onto the sample block; every mapped column must be present.
+    ///
+    /// That includes the depth of cut: a recording without `cut_depth_mm` is refused rather
+    /// than served with 0 in its register, because 0 means "not cutting" on the line and the
+    /// client would score every cut in the file as motor friction. (The map has no "unknown"
+    /// code for it, on purpose: a controller always knows its program.) Such a file can still
+    /// be replayed directly (`servosight --replay`), where the missing column stays missing
+    /// and the estimators say what they cannot compute.
     pub fn new(
         recording: crate::signal::Recording,
         speed: f64,
@@ -244,10 +251,16 @@ impl RecordingSource {
         let mut columns = Vec::new();
         for name in &map::sample_columns()[1..] {
             let index = recording.schema().index_of(name).ok_or_else(|| {
+                let needed_for = if name == crate::signal::channel::CUT_DEPTH {
+                    "serving the register map: without it every cut would be published as \
+                     \"not cutting\" (0); replay the file with `servosight --replay` instead"
+                } else {
+                    "serving the register map"
+                };
                 crate::signal::RecordingError::MissingColumn {
                     source_name: recording.source().to_string(),
                     name: name.clone(),
-                    needed_for: Some("serving the register map".into()),
+                    needed_for: Some(needed_for.into()),
                 }
             })?;
             columns.push(index);
@@ -385,6 +398,83 @@ mod tests {
         assert_eq!(map::decode_sample(&first).unwrap().sequence, 1);
         assert_eq!(map::decode_sample(&second).unwrap().sequence, 2);
     }
+
+    fn recording_with(columns: &[String]) -> crate::signal::Recording {
+        let mut recording = crate::signal::Recording::new("source.csv", columns.to_vec()).unwrap();
+        for i in 0..10 {
+            let row: Vec<f64> = columns
+                .iter()
+                .map(|name| match name.as_str() {
+                    "time_s" => f64::from(i),
+                    "coolant_on" => 1.0,
+                    crate::signal::channel::CUT_DEPTH => {
+                        if i >= 5 {
+                            1.5
+                        } else {
+                            0.0
+                        }
+                    }
+                    _ => 20.0,
+                })
+                .collect();
+            recording.push_row(&row).unwrap();
+        }
+        recording
+    }
+
+    #[test]
+    fn a_recording_is_served_with_its_depth_of_cut_and_refused_without_one() {
+        use crate::signal::channel::CUT_DEPTH;
+        let columns = map::sample_columns();
+        let depth = columns.iter().position(|c| c == CUT_DEPTH).unwrap() - 1;
+        let mut source = RecordingSource::new(recording_with(&columns), 1.0).unwrap();
+        assert_eq!(source.sample(Duration::from_secs(1)).unwrap()[depth], 0.0);
+        assert_eq!(source.sample(Duration::from_secs(6)).unwrap()[depth], 1.5);
+
+        // Without the column nothing is invented: serving is refused, and the message says
+        // why and what to do instead.
+        let without: Vec<String> = columns.into_iter().filter(|c| c != CUT_DEPTH).collect();
+        let Err(err) = RecordingSource::new(recording_with(&without), 1.0) else {
+            panic!("a recording without {CUT_DEPTH} was served");
+        };
+        let message = err.to_string();
+        assert!(message.contains("no column `cut_depth_mm`"), "{message}");
+        assert!(message.contains("servosight --replay"), "{message}");
+    }
+
+    #[test]
+    fn the_twin_source_publishes_the_twins_depth_of_cut() {
+        use crate::signal::channel::CUT_DEPTH;
+        let config = crate::sim::TwinConfig::new(crate::sim::ScenarioKind::Production, None, 3);
+        let twin = crate::sim::Twin::new(config).unwrap();
+        let mut source = TwinSource::new(twin, 1.0).unwrap();
+        let depth = map::sample_columns()
+            .iter()
+            .position(|c| c == CUT_DEPTH)
+            .unwrap()
+            - 1;
+        // One simulated hour in 10 s steps: the production program cuts (roughing and
+        // finishing, 0.2 to 4 mm) and also runs without cutting.
+        let depths: Vec<f64> = (1..=360)
+            .map(|k| source.sample(Duration::from_secs(10 * k)).unwrap()[depth])
+            .collect();
+        assert!(depths.contains(&0.0), "never out of the cut");
+        assert!(
+            depths.iter().any(|d| (0.2..=4.0).contains(d)),
+            "never cutting: {depths:?}"
+        );
+        assert!(depths.iter().all(|d| *d == 0.0 || (0.2..=4.0).contains(d)));
+        // And every sample fits the map: encodes and decodes to the same depth (1 µm).
+        let values = source.sample(Duration::from_secs(3600)).unwrap();
+        let registers = map::encode_sample(&DecodedSample {
+            sequence: 1,
+            clock_ms: 0,
+            values: values.clone(),
+        })
+        .unwrap();
+        let back = map::decode_sample(&registers).unwrap();
+        assert!((back.values[depth] - values[depth]).abs() <= 0.0005);
+    }
 }
 
 /// Serves the physics twin in real time (or faster): the sample at the elapsed time, with the
@@ -395,6 +485,8 @@ mod tests {
 /// temperature) and says so in [`TwinSource::AT_REST_AXES`], rather than inventing a model of
 /// an axis the twin does not have. The spindle runs in speed control and has no position
 /// command; its `S.command_deg` is published equal to `S.position_deg` (no following error).
+/// The depth of cut is the twin's own `cut_depth_mm`: the programmed depth while the tool is
+/// in the cut, 0 otherwise, exactly what a controller knows from its NC program.
 pub struct TwinSource {
     twin: crate::sim::Twin,
     /// For each map column (without `time_s`): where the twin has it, or how to stand in.

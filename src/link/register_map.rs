@@ -10,12 +10,20 @@
 //! A physical value is `raw × scale`.
 
 use crate::compensation::{CompensationId, CompensationValues};
-use crate::signal::channel::{AMBIENT, COOLANT, TIME};
+use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH, CUT_DEPTH_PLAUSIBLE_RANGE_MM, TIME};
 use crate::signal::{AxisId, Channel, Quantity, Schema, axis_column};
 
 /// Version of this map; the controller reports it at [`MAP_VERSION_REGISTER`] and the client
 /// refuses to read samples from a controller that reports another.
-pub const MAP_VERSION: u16 = 1;
+///
+/// Version 2 added the depth of cut ([`CUT_DEPTH_REGISTER`]). That is a breaking change, not
+/// an optional extra: a version-1 controller leaves register 7 reserved at 0, which reads as
+/// "not cutting", and the motor abnormality score (which only judges steady non-cutting
+/// running) would then score every cut's torque as excess friction: false alarms with no hint
+/// of why. Accepting version 1 with the column left out is not possible either, because the
+/// link's schema is fixed before the first reply arrives. So a version-1 controller is refused,
+/// with a message naming both versions, rather than read with a silently wrong depth.
+pub const MAP_VERSION: u16 = 2;
 
 /// The axes the map publishes, in block order.
 pub const MAPPED_AXES: [AxisId; 3] = [AxisId::X, AxisId::Z, AxisId::S];
@@ -41,6 +49,10 @@ pub const AMBIENT_REGISTER: u16 = 4;
 pub const COOLANT_REGISTER: u16 = 5;
 /// Version of the register map the controller implements, u16, must equal [`MAP_VERSION`].
 pub const MAP_VERSION_REGISTER: u16 = 6;
+/// Depth of cut of the active NC block, u16, 0.001 mm; 0 outside cutting blocks (rapid moves,
+/// idle, dwell, tool change). The controller knows it from the program, not from a sensor.
+/// Registers 8..=15 are reserved and read as 0.
+pub const CUT_DEPTH_REGISTER: u16 = 7;
 /// First register of the first axis block.
 pub const AXIS_BLOCKS_START: u16 = 16;
 /// Registers per axis block (the tail of each block is reserved and reads as 0).
@@ -50,6 +62,11 @@ pub const SAMPLE_BLOCK_LEN: u16 = AXIS_BLOCKS_START + AXIS_BLOCK_LEN * MAPPED_AX
 
 /// Counts per °C of the ambient temperature register.
 pub const AMBIENT_COUNTS_PER_UNIT: f64 = 100.0;
+/// Counts per mm of the depth-of-cut register. 1 µm resolution is finer than any programmed
+/// depth; a u16 then spans 0 to 65.535 mm, well beyond the plausible range
+/// ([`CUT_DEPTH_PLAUSIBLE_RANGE_MM`], 0 to 50 mm), so the top of the register (0xFFFF, the
+/// usual "no value" or a garbled word) is refused on decode rather than read as a cut.
+pub const CUT_DEPTH_COUNTS_PER_MM: f64 = 1000.0;
 
 /// How one value is stored in registers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -176,6 +193,49 @@ pub fn axis_block_start(axis: AxisId) -> Option<u16> {
         .map(|i| AXIS_BLOCKS_START + AXIS_BLOCK_LEN * i as u16)
 }
 
+/// One machine-level value of the sample block (not an axis quantity).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MachineField {
+    /// The recording column it decodes to.
+    pub column: &'static str,
+    /// Its register.
+    pub register: u16,
+    /// Storage type.
+    pub register_type: RegisterType,
+    /// Counts per physical unit, as in [`AxisField::counts_per_unit`].
+    pub counts_per_unit: f64,
+}
+
+/// The machine-level values of the sample block, in [`sample_columns`] order (after the axes).
+pub const MACHINE_FIELDS: [MachineField; 3] = [
+    MachineField {
+        column: AMBIENT,
+        register: AMBIENT_REGISTER,
+        register_type: RegisterType::I16,
+        counts_per_unit: AMBIENT_COUNTS_PER_UNIT,
+    },
+    MachineField {
+        column: COOLANT,
+        register: COOLANT_REGISTER,
+        register_type: RegisterType::U16,
+        counts_per_unit: 1.0,
+    },
+    MachineField {
+        column: CUT_DEPTH,
+        register: CUT_DEPTH_REGISTER,
+        register_type: RegisterType::U16,
+        counts_per_unit: CUT_DEPTH_COUNTS_PER_MM,
+    },
+];
+
+/// The plausible range of a sample column: the format's range for the channels it knows, and
+/// for the depth of cut (a column the format keeps as a plain number) its own range.
+fn plausible_range(column: &str) -> Option<(f64, f64)> {
+    Channel::parse(column)
+        .plausible_range()
+        .or_else(|| (column == CUT_DEPTH).then_some(CUT_DEPTH_PLAUSIBLE_RANGE_MM))
+}
+
 // ---- holding registers (function codes 03 read, 16 write) -------------------------------
 
 /// Commit status, u16, written by the controller: see [`CommitStatus`].
@@ -283,7 +343,9 @@ pub enum MapError {
         found: u16,
     },
     /// A decoded value lies outside its channel's plausible range: a garbled register.
-    #[error("register {register}: {column} = {value} is outside its plausible range")]
+    #[error(
+        "register {register} ({column}): {value} is outside its plausible range {low} to {high}"
+    )]
     Implausible {
         /// The first register of the value.
         register: u16,
@@ -291,6 +353,10 @@ pub enum MapError {
         column: String,
         /// The decoded value.
         value: f64,
+        /// Lower end of the plausible range.
+        low: f64,
+        /// Upper end of the plausible range.
+        high: f64,
     },
     /// A value does not fit its registers.
     #[error("{name} = {value} does not fit in {register_type:?} registers at scale {scale}")]
@@ -340,14 +406,14 @@ fn to_raw(
 }
 
 /// The columns a sample decodes to, `time_s` first: every quantity of every mapped axis, then
-/// ambient and coolant. `time_s` is the client's receive time (see [`super::Frame`]).
+/// the machine-level values ([`MACHINE_FIELDS`]: ambient, coolant, depth of cut). `time_s` is
+/// the client's receive time (see [`super::Frame`]).
 pub fn sample_columns() -> Vec<String> {
     let mut names = vec![TIME.to_string()];
     for axis in MAPPED_AXES {
         names.extend(AXIS_FIELDS.iter().map(|f| axis_column(axis, f.quantity)));
     }
-    names.push(AMBIENT.to_string());
-    names.push(COOLANT.to_string());
+    names.extend(MACHINE_FIELDS.iter().map(|f| f.column.to_string()));
     names
 }
 
@@ -387,15 +453,18 @@ pub fn decode_sample(registers: &[u16]) -> Result<DecodedSample, MapError> {
     }
     let sequence = RegisterType::U32.read(at(SEQUENCE_REGISTER)) as u32;
     let clock_ms = RegisterType::U32.read(at(CLOCK_MS_REGISTER)) as u32;
-    let mut values = Vec::with_capacity(MAPPED_AXES.len() * AXIS_FIELDS.len() + 2);
+    let mut values =
+        Vec::with_capacity(MAPPED_AXES.len() * AXIS_FIELDS.len() + MACHINE_FIELDS.len());
     let columns = sample_columns();
     let check = |register: u16, value: f64, index: usize| -> Result<f64, MapError> {
         let column = &columns[index + 1];
-        match Channel::parse(column).plausible_range() {
+        match plausible_range(column) {
             Some((low, high)) if !(low..=high).contains(&value) => Err(MapError::Implausible {
                 register,
                 column: column.clone(),
                 value,
+                low,
+                high,
             }),
             _ => Ok(value),
         }
@@ -409,12 +478,11 @@ pub fn decode_sample(registers: &[u16]) -> Result<DecodedSample, MapError> {
             values.push(value);
         }
     }
-    let ambient = RegisterType::I16.read(at(AMBIENT_REGISTER)) as f64 / AMBIENT_COUNTS_PER_UNIT;
-    let ambient = check(AMBIENT_REGISTER, ambient, values.len())?;
-    values.push(ambient);
-    let coolant = RegisterType::U16.read(at(COOLANT_REGISTER)) as f64;
-    let coolant = check(COOLANT_REGISTER, coolant, values.len())?;
-    values.push(coolant);
+    for field in MACHINE_FIELDS {
+        let value = field.register_type.read(at(field.register)) as f64 / field.counts_per_unit;
+        let value = check(field.register, value, values.len())?;
+        values.push(value);
+    }
     Ok(DecodedSample {
         sequence,
         clock_ms,
@@ -456,13 +524,14 @@ pub fn encode_sample(sample: &DecodedSample) -> Result<Vec<u16>, MapError> {
                 .write(raw, &mut registers[usize::from(base + field.offset)..]);
         }
     }
-    if let Some((ambient, name)) = next.next() {
-        let raw = to_raw(name, *ambient, RegisterType::I16, AMBIENT_COUNTS_PER_UNIT)?;
-        RegisterType::I16.write(raw, &mut registers[usize::from(AMBIENT_REGISTER)..]);
-    }
-    if let Some((coolant, name)) = next.next() {
-        let raw = to_raw(name, *coolant, RegisterType::U16, 1.0)?;
-        RegisterType::U16.write(raw, &mut registers[usize::from(COOLANT_REGISTER)..]);
+    for field in MACHINE_FIELDS {
+        let Some((value, name)) = next.next() else {
+            break;
+        };
+        let raw = to_raw(name, *value, field.register_type, field.counts_per_unit)?;
+        field
+            .register_type
+            .write(raw, &mut registers[usize::from(field.register)..]);
     }
     Ok(registers)
 }
@@ -622,7 +691,7 @@ pub struct CompensationDescription {
 /// The whole map as data.
 pub fn describe() -> MapDescription {
     let unit = |name: &str| Channel::unit_of(name).unwrap_or("");
-    let machine = vec![
+    let mut machine = vec![
         FieldDescription {
             name: "sequence".into(),
             address: SEQUENCE_REGISTER,
@@ -638,20 +707,6 @@ pub fn describe() -> MapDescription {
             unit: "ms",
         },
         FieldDescription {
-            name: AMBIENT.into(),
-            address: AMBIENT_REGISTER,
-            register_type: RegisterType::I16,
-            scale: 1.0 / AMBIENT_COUNTS_PER_UNIT,
-            unit: unit(AMBIENT),
-        },
-        FieldDescription {
-            name: COOLANT.into(),
-            address: COOLANT_REGISTER,
-            register_type: RegisterType::U16,
-            scale: 1.0,
-            unit: unit(COOLANT),
-        },
-        FieldDescription {
             name: "map_version".into(),
             address: MAP_VERSION_REGISTER,
             register_type: RegisterType::U16,
@@ -659,6 +714,15 @@ pub fn describe() -> MapDescription {
             unit: "",
         },
     ];
+    machine.extend(MACHINE_FIELDS.iter().map(|f| FieldDescription {
+        name: f.column.into(),
+        address: f.register,
+        register_type: f.register_type,
+        scale: 1.0 / f.counts_per_unit,
+        unit: unit(f.column),
+    }));
+    // In address order, as a reader of the table expects.
+    machine.sort_by_key(|f| f.address);
     let axes = MAPPED_AXES
         .iter()
         .map(|&axis| {
@@ -839,6 +903,7 @@ mod tests {
             .iter()
             .enumerate()
             .map(|(i, name)| match Channel::parse(name) {
+                Channel::Unknown if name == CUT_DEPTH => 2.345,
                 Channel::Coolant => 1.0,
                 Channel::Ambient => 21.37,
                 Channel::Servo { quantity, .. } => match quantity {
@@ -886,10 +951,12 @@ mod tests {
             values: sample_values(),
         };
         let mut registers = encode_sample(&sample).unwrap();
-        registers[usize::from(MAP_VERSION_REGISTER)] = 2;
+        registers[usize::from(MAP_VERSION_REGISTER)] = MAP_VERSION + 1;
         assert_eq!(
             decode_sample(&registers),
-            Err(MapError::VersionMismatch { found: 2 })
+            Err(MapError::VersionMismatch {
+                found: MAP_VERSION + 1
+            })
         );
         registers[usize::from(MAP_VERSION_REGISTER)] = MAP_VERSION;
         // Stator temperature of X at 327 °C: beyond any working winding.
@@ -901,6 +968,141 @@ mod tests {
             "{err}"
         );
         assert!(decode_sample(&registers[..10]).is_err());
+    }
+
+    #[test]
+    fn the_depth_of_cut_sits_in_the_machine_header_at_one_micrometre() {
+        let columns = sample_columns();
+        let depth_index = columns.iter().position(|c| c == CUT_DEPTH).unwrap() - 1;
+        let mut sample = DecodedSample {
+            sequence: 1,
+            clock_ms: 0,
+            values: sample_values(),
+        };
+        let registers = encode_sample(&sample).unwrap();
+        assert_eq!(registers[usize::from(CUT_DEPTH_REGISTER)], 2345);
+        assert_eq!(
+            decode_sample(&registers).unwrap().values[depth_index],
+            2.345
+        );
+        // Outside cutting blocks the register reads 0, and 0 round-trips as "not cutting".
+        sample.values[depth_index] = 0.0;
+        let registers = encode_sample(&sample).unwrap();
+        assert_eq!(registers[usize::from(CUT_DEPTH_REGISTER)], 0);
+        assert_eq!(decode_sample(&registers).unwrap().values[depth_index], 0.0);
+        // The top of the plausible range still fits the register, with margin.
+        sample.values[depth_index] = CUT_DEPTH_PLAUSIBLE_RANGE_MM.1;
+        let registers = encode_sample(&sample).unwrap();
+        assert_eq!(
+            decode_sample(&registers).unwrap().values[depth_index],
+            CUT_DEPTH_PLAUSIBLE_RANGE_MM.1
+        );
+        // A negative depth has no register value: refused, not wrapped.
+        sample.values[depth_index] = -0.5;
+        assert!(matches!(
+            encode_sample(&sample),
+            Err(MapError::OutOfRegisterRange { name, .. }) if name == CUT_DEPTH
+        ));
+    }
+
+    #[test]
+    fn an_implausible_depth_of_cut_is_refused_naming_its_register() {
+        let sample = DecodedSample {
+            sequence: 1,
+            clock_ms: 0,
+            values: sample_values(),
+        };
+        let mut registers = encode_sample(&sample).unwrap();
+        // 0xFFFF: a "no value" word or a garbled register, 65.535 mm if taken at face value.
+        registers[usize::from(CUT_DEPTH_REGISTER)] = 0xFFFF;
+        let err = decode_sample(&registers).unwrap_err();
+        assert_eq!(
+            err,
+            MapError::Implausible {
+                register: CUT_DEPTH_REGISTER,
+                column: CUT_DEPTH.into(),
+                value: 65.535,
+                low: 0.0,
+                high: 50.0,
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            "register 7 (cut_depth_mm): 65.535 is outside its plausible range 0 to 50"
+        );
+        // Just past the range is refused too; just inside is not.
+        registers[usize::from(CUT_DEPTH_REGISTER)] = 50_001;
+        assert!(decode_sample(&registers).is_err());
+        registers[usize::from(CUT_DEPTH_REGISTER)] = 50_000;
+        assert!(decode_sample(&registers).is_ok());
+    }
+
+    #[test]
+    fn a_version_1_controller_without_the_depth_of_cut_is_refused() {
+        let sample = DecodedSample {
+            sequence: 1,
+            clock_ms: 0,
+            values: sample_values(),
+        };
+        let mut registers = encode_sample(&sample).unwrap();
+        // What a version-1 controller sends: register 7 reserved (0, which would read as
+        // "not cutting") and version 1.
+        registers[usize::from(CUT_DEPTH_REGISTER)] = 0;
+        registers[usize::from(MAP_VERSION_REGISTER)] = 1;
+        let err = decode_sample(&registers).unwrap_err();
+        assert_eq!(err, MapError::VersionMismatch { found: 1 });
+        assert_eq!(
+            err.to_string(),
+            "the controller reports register map version 1, servosight speaks 2"
+        );
+    }
+
+    #[test]
+    fn sample_fields_do_not_overlap_and_stay_in_the_block() {
+        let map = describe();
+        let mut used = vec![None::<String>; usize::from(SAMPLE_BLOCK_LEN)];
+        let fields = map
+            .machine
+            .iter()
+            .chain(map.axes.iter().flat_map(|a| a.fields.iter()));
+        for field in fields {
+            for word in 0..field.register_type.words() {
+                let address = usize::from(field.address + word);
+                assert!(address < used.len(), "{} outside the block", field.name);
+                if let Some(other) = &used[address] {
+                    panic!("{} and {other} share register {address}", field.name);
+                }
+                used[address] = Some(field.name.clone());
+            }
+        }
+        // The machine header ends before the first axis block.
+        assert!(
+            map.machine
+                .iter()
+                .all(|f| f.address + f.register_type.words() <= AXIS_BLOCKS_START)
+        );
+        let depth = map.machine.iter().find(|f| f.name == CUT_DEPTH).unwrap();
+        assert_eq!(
+            (depth.address, depth.register_type, depth.scale, depth.unit),
+            (CUT_DEPTH_REGISTER, RegisterType::U16, 0.001, "mm")
+        );
+        // Every column a sample decodes to is described, and nothing else.
+        let mut described: Vec<&str> = map
+            .machine
+            .iter()
+            .map(|f| f.name.as_str())
+            .filter(|n| !["sequence", "clock_ms", "map_version"].contains(n))
+            .chain(
+                map.axes
+                    .iter()
+                    .flat_map(|a| a.fields.iter().map(|f| f.name.as_str())),
+            )
+            .collect();
+        let columns = sample_columns();
+        let mut expected: Vec<&str> = columns[1..].iter().map(String::as_str).collect();
+        described.sort_unstable();
+        expected.sort_unstable();
+        assert_eq!(described, expected);
     }
 
     #[test]

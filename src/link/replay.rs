@@ -42,6 +42,12 @@ impl Default for ReplayOptions {
 impl ControllerLink {
     /// Replays a recording file. Its metadata and header are read now, so a missing or broken
     /// file is reported here; a bad row later ends the replay with the error in the status.
+    ///
+    /// The frames have exactly the file's columns. A recording without `cut_depth_mm` (older
+    /// files, or ones from a controller that does not publish it) stays without it: no depth
+    /// is made up, because a 0 would claim "not cutting" and cuts would be scored as motor
+    /// friction. The estimators then say which score they cannot compute
+    /// ([`crate::estimators::EstimatorPipeline::notes`]).
     pub fn replay(path: &Path, options: ReplayOptions) -> Result<ControllerLink, LinkError> {
         let reader = RecordingReader::open(path)?;
         let schema = reader.schema().clone();

@@ -17,6 +17,12 @@ use crate::sim::{Twin, TwinConfig};
 
 impl ControllerLink {
     /// Runs the twin as a source at `speed`. `stale_after` as for a replay.
+    ///
+    /// Frames carry every column the twin produces, in the twin's own schema: the servo
+    /// signals, ambient, coolant, the depth of cut of the active block (`cut_depth_mm`, which
+    /// the motor abnormality score needs to leave cuts out) and the twin's `ref.*` truth.
+    /// Unlike a controller it is not squeezed through the register map, so it needs no map
+    /// version; `tests/link_replay.rs` checks that both schemas carry the depth of cut.
     pub fn twin(
         config: TwinConfig,
         speed: ReplaySpeed,

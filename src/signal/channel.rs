@@ -17,6 +17,11 @@ pub const COOLANT: &str = "coolant_on";
 /// The programmed depth of cut while the tool is cutting, mm (0 otherwise). Not a servo signal:
 /// the controller knows it from the NC program; depth-of-cut recommendations need it.
 pub const CUT_DEPTH: &str = "cut_depth_mm";
+/// The plausible range of [`CUT_DEPTH`], mm. The twin cuts 0.2 to 4 mm, heavy roughing on a
+/// big lathe takes a few tens of mm at most; a depth outside this range is a garbled value,
+/// not a cut. (The format keeps `cut_depth_mm` as a plain column, so
+/// [`Channel::plausible_range`] does not know it; the controller link checks this range.)
+pub const CUT_DEPTH_PLAUSIBLE_RANGE_MM: (f64, f64) = (0.0, 50.0);
 /// Prefix of reference-instrument columns, used for calibration and validation only.
 pub const REFERENCE_PREFIX: &str = "ref.";
 

@@ -14,6 +14,9 @@ Options:
   --write-log FILE   append every write request (function, address, values) as a JSON line
   --no-echo          accept commits but never copy staged values to the applied echo
   --sequence-start N first sequence number (default 1)
+  --cut-depth-raw N  publish this raw word in the depth-of-cut register instead of the
+                     alternating cut (a garbled or out-of-range register, for the client's
+                     range check)
 """
 
 import argparse
@@ -48,8 +51,16 @@ def to_raw(value, kind, scale):
     return [(raw >> 16) & 0xFFFF, raw & 0xFFFF]
 
 
+# The depth of cut the peer publishes while "cutting": sub-millimetre digits, so the client's
+# decoding at 0.001 mm is checked, not just the integer part.
+CUT_DEPTH_MM = 2.345
+
+
 def physical_value(name, t):
     """Plausible, smoothly varying signals, so a decoded value can be checked for sanity."""
+    if name == "cut_depth_mm":
+        # Alternates every quarter second between a cut and no cut (0), like NC blocks do.
+        return CUT_DEPTH_MM if int(t * 4.0) % 2 else 0.0
     if name.endswith("stator_temp_C"):
         return 30.0 + 5.0 * math.sin(t / 60.0)
     if name.endswith("speed_rpm"):
@@ -70,8 +81,9 @@ def physical_value(name, t):
 
 
 class Peer:
-    def __init__(self, layout, sequence_start, echo, write_log):
+    def __init__(self, layout, sequence_start, echo, write_log, cut_depth_raw=None):
         self.map = layout
+        self.cut_depth_raw = cut_depth_raw
         self.sequence = sequence_start - 1
         self.echo = echo
         self.write_log = write_log
@@ -95,6 +107,9 @@ class Peer:
                 v = int(t * 1000) & 0xFFFFFFFF
             elif name == "map_version":
                 v = self.map["version"]
+            elif name == "cut_depth_mm" and self.cut_depth_raw is not None:
+                values[field["address"]] = [self.cut_depth_raw & 0xFFFF]
+                continue
             else:
                 v = physical_value(name, t)
             values[field["address"]] = to_raw(v, field["type"], field["scale"])
@@ -160,10 +175,11 @@ async def main():
     parser.add_argument("--write-log")
     parser.add_argument("--no-echo", action="store_true")
     parser.add_argument("--sequence-start", type=int, default=1)
+    parser.add_argument("--cut-depth-raw", type=int)
     args = parser.parse_args()
     with open(args.map, encoding="utf-8") as f:
         layout = json.load(f)
-    peer = Peer(layout, args.sequence_start, not args.no_echo, args.write_log)
+    peer = Peer(layout, args.sequence_start, not args.no_echo, args.write_log, args.cut_depth_raw)
     block = layout["sample_block"]
     device = SimDevice(
         id=args.slave,
