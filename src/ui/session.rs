@@ -259,6 +259,20 @@ impl Session {
         if let Some(error) = pipeline_error {
             worker.event(EventKind::Condition, Severity::Warning, error);
         }
+        // What the estimators cannot do on this link (e.g. no abnormality score without the
+        // depth of cut) is said once, so a missing reading is never a mystery.
+        let notes = worker
+            .pipeline
+            .as_ref()
+            .map_or(&[][..], |p| p.notes())
+            .to_vec();
+        for note in notes {
+            worker.event(
+                EventKind::Condition,
+                Severity::Warning,
+                format!("estimators: {note}"),
+            );
+        }
         let thread = std::thread::Builder::new()
             .name("servosight-session".into())
             .spawn(move || worker.run(&runtime, command_rx))
