@@ -307,3 +307,59 @@ fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
         "{warnings:?}"
     );
 }
+
+/// An HMI session on a recording without the depth of cut says in its events why there is no
+/// abnormality score, instead of silently showing none.
+#[test]
+fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
+    use servosight::compensation::CompensationLimits;
+    use servosight::link::register_map;
+    use servosight::signal::channel::CUT_DEPTH;
+    use servosight::ui::session::SessionUpdate;
+    use servosight::ui::{Session, SessionConfig, SourceSpec};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.csv");
+    let names: Vec<String> = register_map::sample_columns()
+        .into_iter()
+        .filter(|c| c != CUT_DEPTH)
+        .collect();
+    let rows: Vec<String> = (0..5)
+        .map(|t| {
+            let mut row = vec!["1".to_string(); names.len()];
+            row[0] = t.to_string();
+            row.join(",")
+        })
+        .collect();
+    std::fs::write(&path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
+    let mut session = Session::start(SessionConfig {
+        source: SourceSpec::Replay {
+            path: path.clone(),
+            options: ReplayOptions::default(),
+        },
+        record_dir: None,
+        users_path: dir.path().join("users.toml"),
+        audit_path: dir.path().join("audit.jsonl"),
+        limits: CompensationLimits::default(),
+        profile: Some(twin_profile()),
+        data_dir: dir.path().join("data"),
+    })
+    .expect("session starts");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut events = Vec::new();
+    while Instant::now() < deadline && !events.iter().any(|e: &String| e.contains(CUT_DEPTH)) {
+        while let Some(update) = session.try_recv() {
+            if let SessionUpdate::Event(event) = update {
+                events.push(format!("{event:?}"));
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for axis in ["X", "S"] {
+        assert!(
+            events.iter().any(|e| e.contains(&format!(
+                "estimators: {axis}: no abnormality score: the frames have no `{CUT_DEPTH}` column"
+            ))),
+            "{events:?}"
+        );
+    }
+}
