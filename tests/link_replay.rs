@@ -245,6 +245,8 @@ fn every_link_schema_carries_the_depth_of_cut_so_abnormality_is_scored() {
 
 #[test]
 fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
+    // A 1000× twin session allocates while it runs; the Modbus soak must not count it.
+    let _memory = crate::common::hold_process_memory();
     use servosight::compensation::CompensationLimits;
     use servosight::ui::session::SessionUpdate;
     use servosight::ui::{Session, SessionConfig, SourceSpec};

@@ -560,6 +560,15 @@ fn corrupted_bytes_are_counted_and_never_accepted() {
         |_| false,
     );
     let status = link.status();
+    // A frame whose gap the link has counted may still be on its way to the test: take what
+    // arrives shortly after, and compare with the counts before and after it.
+    pump(
+        &mut link,
+        Duration::from_millis(300),
+        &mut |f| frames.push(f),
+        |_| false,
+    );
+    let later = link.status();
     let corrupted = relay.corrupted.load(Ordering::Relaxed);
     eprintln!(
         "{corrupted} chunks corrupted; {} frames; {:?}",
@@ -587,7 +596,12 @@ fn corrupted_bytes_are_counted_and_never_accepted() {
     }
     // Every reply lost to corruption is a sample the peer published: the gaps say so.
     let lost: u64 = frames.iter().map(|f| f.lost_before).sum();
-    assert_eq!(lost, status.stats.lost_samples);
+    assert!(
+        status.stats.lost_samples <= lost && lost <= later.stats.lost_samples,
+        "frames carry {lost} lost samples; the link counted {} then {}",
+        status.stats.lost_samples,
+        later.stats.lost_samples
+    );
     assert!(lost >= 1);
     drop(link);
     relay.stop();
