@@ -1013,6 +1013,17 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
     assert!(finding["signals"][0].is_string());
     assert!(finding["delta_r2"].as_f64().unwrap() > 0.1);
     assert!(finding["p_value"].as_f64().unwrap() <= 0.025);
+    // Alternatives' gains are fractions of the winner's: at most 1, and the runner-up of a
+    // strong heat effect explains a visible share of what it explains.
+    let alternatives = finding["alternatives"].as_array().unwrap();
+    assert!(!alternatives.is_empty(), "{finding}");
+    for a in alternatives {
+        assert!(a["relative_gain"].as_f64().unwrap() <= 1.0 + 1e-9, "{a}");
+    }
+    assert!(
+        alternatives[0]["relative_gain"].as_f64().unwrap() > 0.01,
+        "{finding}"
+    );
     let plot: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&plot).unwrap()).unwrap();
     let points = plot["time_s"].as_array().unwrap().len();
