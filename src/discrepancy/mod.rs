@@ -587,8 +587,10 @@ fn analyse_watched(
                         .take(3)
                         .map(|&(m, g)| Alternative {
                             physics: name_of(m),
-                            relative_gain: if s.step.gain > 0.0 {
-                                g / s.step.gain
+                            // Runners-up carry relative gains (shares of the error before
+                            // the step), the step its absolute gain: compare like with like.
+                            relative_gain: if s.step.gain > 0.0 && s.step.sse_before > 0.0 {
+                                g * s.step.sse_before / s.step.gain
                             } else {
                                 0.0
                             },
