@@ -243,30 +243,37 @@ fn every_link_schema_carries_the_depth_of_cut_so_abnormality_is_scored() {
     );
 }
 
+/// An HMI session on `source` with the shipped twin profile, its files in `dir`.
+fn twin_profile_session(dir: &Path, source: servosight::ui::SourceSpec) -> servosight::ui::Session {
+    servosight::ui::Session::start(servosight::ui::SessionConfig {
+        source,
+        record_dir: None,
+        users_path: dir.join("users.toml"),
+        audit_path: dir.join("audit.jsonl"),
+        limits: servosight::compensation::CompensationLimits::default(),
+        profile: Some(twin_profile()),
+        data_dir: dir.join("data"),
+    })
+    .expect("session starts")
+}
+
 #[test]
 fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
     // A 1000× twin session allocates while it runs; the Modbus soak must not count it.
     let _memory = crate::common::hold_process_memory();
-    use servosight::compensation::CompensationLimits;
+    use servosight::ui::SourceSpec;
     use servosight::ui::session::SessionUpdate;
-    use servosight::ui::{Session, SessionConfig, SourceSpec};
     let dir = tempfile::tempdir().unwrap();
     // The HMI's default source: the production program, paced fast so the spindle's steady
     // shift-start warm-up (15 simulated minutes, no cutting) passes in about a second.
     let twin = servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, None, 7);
-    let mut session = Session::start(SessionConfig {
-        source: SourceSpec::Twin {
+    let mut session = twin_profile_session(
+        dir.path(),
+        SourceSpec::Twin {
             config: Box::new(twin),
             speed: ReplaySpeed::Factor(1000.0),
         },
-        record_dir: None,
-        users_path: dir.path().join("users.toml"),
-        audit_path: dir.path().join("audit.jsonl"),
-        limits: CompensationLimits::default(),
-        profile: Some(twin_profile()),
-        data_dir: dir.path().join("data"),
-    })
-    .expect("session starts");
+    );
     let schema = session.schema().clone();
     let spindle = schema
         .index_of("est.S.abnormality_pct")
@@ -314,11 +321,10 @@ fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
 /// abnormality score, instead of silently showing none.
 #[test]
 fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
-    use servosight::compensation::CompensationLimits;
     use servosight::link::register_map;
     use servosight::signal::channel::CUT_DEPTH;
+    use servosight::ui::SourceSpec;
     use servosight::ui::session::SessionUpdate;
-    use servosight::ui::{Session, SessionConfig, SourceSpec};
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("old.csv");
     let names: Vec<String> = register_map::sample_columns()
@@ -333,19 +339,13 @@ fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
         })
         .collect();
     std::fs::write(&path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
-    let mut session = Session::start(SessionConfig {
-        source: SourceSpec::Replay {
+    let mut session = twin_profile_session(
+        dir.path(),
+        SourceSpec::Replay {
             path: path.clone(),
             options: ReplayOptions::default(),
         },
-        record_dir: None,
-        users_path: dir.path().join("users.toml"),
-        audit_path: dir.path().join("audit.jsonl"),
-        limits: CompensationLimits::default(),
-        profile: Some(twin_profile()),
-        data_dir: dir.path().join("data"),
-    })
-    .expect("session starts");
+    );
     let deadline = Instant::now() + Duration::from_secs(10);
     let mut events = Vec::new();
     while Instant::now() < deadline && !events.iter().any(|e: &String| e.contains(CUT_DEPTH)) {
