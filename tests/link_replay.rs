@@ -217,19 +217,7 @@ fn every_link_schema_carries_the_depth_of_cut_so_abnormality_is_scored() {
     // A replayed recording without the column: nothing is invented, the pipeline says why.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("old.csv");
-    let names: Vec<String> = register_map::sample_columns()
-        .into_iter()
-        .filter(|c| c != CUT_DEPTH)
-        .collect();
-    std::fs::write(
-        &path,
-        format!(
-            "{}\n{}\n",
-            names.join(","),
-            vec!["1"; names.len()].join(",")
-        ),
-    )
-    .unwrap();
+    write_recording_without_cut_depth(&path);
     let link = ControllerLink::replay(&path, ReplayOptions::default()).unwrap();
     assert!(link.schema().index_of(CUT_DEPTH).is_none());
     let (columns, notes) = abnormality_columns(link.schema());
@@ -241,6 +229,24 @@ fn every_link_schema_carries_the_depth_of_cut_so_abnormality_is_scored() {
             .all(|n| n.contains("no abnormality score") && n.contains(CUT_DEPTH)),
         "{notes:?}"
     );
+}
+
+/// Five rows of the register map's columns without `cut_depth_mm` (an older recording).
+fn write_recording_without_cut_depth(path: &Path) {
+    use servosight::link::register_map;
+    use servosight::signal::channel::CUT_DEPTH;
+    let names: Vec<String> = register_map::sample_columns()
+        .into_iter()
+        .filter(|c| c != CUT_DEPTH)
+        .collect();
+    let rows: Vec<String> = (0..5)
+        .map(|t| {
+            let mut row = vec!["1".to_string(); names.len()];
+            row[0] = t.to_string();
+            row.join(",")
+        })
+        .collect();
+    std::fs::write(path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
 }
 
 /// An HMI session on `source` with the shipped twin profile, its files in `dir`.
@@ -321,24 +327,12 @@ fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
 /// abnormality score, instead of silently showing none.
 #[test]
 fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
-    use servosight::link::register_map;
     use servosight::signal::channel::CUT_DEPTH;
     use servosight::ui::SourceSpec;
     use servosight::ui::session::SessionUpdate;
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("old.csv");
-    let names: Vec<String> = register_map::sample_columns()
-        .into_iter()
-        .filter(|c| c != CUT_DEPTH)
-        .collect();
-    let rows: Vec<String> = (0..5)
-        .map(|t| {
-            let mut row = vec!["1".to_string(); names.len()];
-            row[0] = t.to_string();
-            row.join(",")
-        })
-        .collect();
-    std::fs::write(&path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
+    write_recording_without_cut_depth(&path);
     let mut session = twin_profile_session(
         dir.path(),
         SourceSpec::Replay {
