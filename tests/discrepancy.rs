@@ -657,7 +657,10 @@ pub fn two_effect_cases(seed: u64, noise: Noise) -> Vec<Case> {
             machine: machine.into_iter().map(String::from).collect(),
             real_only: real_only.into_iter().map(String::from).collect(),
             noise,
-            hours: 5.0,
+            hours: std::env::var("DISCREPANCY_PAIR_HOURS")
+                .ok()
+                .and_then(|h| h.parse().ok())
+                .unwrap_or(5.0),
             seed,
         };
     let x_torque = axis_column(AxisId::X, Quantity::Torque);

@@ -514,6 +514,14 @@ fn thermal_grid(taus: &[f64], extra: &[f64]) -> Vec<Vec<f64>> {
     grid
 }
 
+/// The slowest lag a candidate may have while candidates compete to name the missing physics,
+/// as a share of the recording's length. Within a recording, a lag much slower than the
+/// recording is only a ramp — which a sensor drift, the room and every other slow driver also
+/// make — so such a member names nothing and lets a flexible heat path (two lags, the second
+/// 12 τ) absorb a second, slower effect before it is tested. Once a physics is accepted, its
+/// joint refit may still choose any member of its family.
+pub const SELECTION_LONGEST_LAG_SHARE: f64 = 0.5;
+
 /// Marks a family as built from the target's own state (see [`Family::state`]).
 fn state_dependent(mut family: Family) -> Family {
     family.state = true;

@@ -348,6 +348,11 @@ fn analyse_watched(
         .iter()
         .enumerate()
         .flat_map(|(index, family)| family.grid.iter().map(move |theta| (index, theta)))
+        .filter(|(index, theta)| {
+            let family = &families[*index];
+            let longest = library::SELECTION_LONGEST_LAG_SHARE * ctx.duration_s;
+            !family.lagged || family.lags(theta).iter().all(|lag| *lag <= longest)
+        })
         .collect();
     watch.report(BUILD_AT, || {
         format!("building {} candidate corrections", grid.len())
@@ -785,6 +790,9 @@ fn binned_standardised(
 /// state correction to convergence).
 const JOINT_ROUNDS: usize = 3;
 
+/// Grid members refined before a correction's member is chosen again in the joint refit.
+const RESELECT_REFINED: usize = 3;
+
 /// Most fixed-point iterations of the state correction per round.
 const STATE_ITERATIONS: usize = 12;
 
@@ -883,9 +891,11 @@ impl Joint<'_> {
             {
                 return;
             }
-            // Time constants, one member at a time with all the others in the model (with a
-            // single correction the refinement above already did this).
-            if active > 1 || (stateful && round > 0) {
+            // Time constants, one member at a time with all the others in the model. Even a
+            // single correction is chosen again from its whole family: the selection offered
+            // only lags the recording can identify (`SELECTION_LONGEST_LAG_SHARE`), and the
+            // physics, once named, may need a slower one to fit.
+            if active > 1 || round == 0 || stateful {
                 let state_ctx = self.state_context();
                 for k in 0..self.accepted.len() {
                     if !self.active[k] {
@@ -982,7 +992,7 @@ impl Joint<'_> {
         let f = &self.families[family];
         let mut grid: Vec<Vec<f64>> = f.grid.clone();
         grid.push(current.to_vec());
-        let scored = series::parallel_map(&grid, |theta| {
+        let score = |theta: &Vec<f64>| -> f64 {
             let columns = build(f, ctx, theta);
             if columns.is_empty() {
                 return f64::INFINITY;
@@ -1019,9 +1029,30 @@ impl Joint<'_> {
                 }
             }
             gram.cv_sse(&stats, self.blocks).unwrap_or(f64::INFINITY)
-        });
-        grid.into_iter()
+        };
+        let scored = series::parallel_map(&grid, score);
+        let mut ranked: Vec<(Vec<f64>, f64)> = grid
+            .into_iter()
             .zip(scored)
+            .filter(|(_, e)| e.is_finite())
+            .collect();
+        ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
+        // Grid members are compared at grid time constants while the current one is refined;
+        // the best few are refined too before the choice, so a lag shape is not lost for
+        // want of its τ being on the grid.
+        let contenders: Vec<Vec<f64>> = ranked
+            .iter()
+            .take(RESELECT_REFINED)
+            .map(|(theta, _)| theta.clone())
+            .collect();
+        let refined = series::parallel_map(&contenders, |theta| {
+            let theta = refine_member(f, theta, others, ctx, self.bins, self.y);
+            let error = score(&theta);
+            (theta, error)
+        });
+        ranked
+            .into_iter()
+            .chain(refined)
             .filter(|(_, e)| e.is_finite())
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map_or_else(|| current.to_vec(), |(theta, _)| theta)
