@@ -823,6 +823,8 @@ fn discrepancy_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::P
 
 #[test]
 fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physics() {
+    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
+    let _memory = crate::common::hold_process_memory();
     let mut f = start();
     let (sim, real, target) = discrepancy_files(f._dir.path());
     let h = &mut f.harness;
@@ -918,6 +920,8 @@ fn a_missing_file_shows_the_error_in_the_model_lab() {
 /// recordings that do not overlap in time.
 #[test]
 fn the_discrepancy_job_reports_the_librarys_errors() {
+    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
+    let _memory = crate::common::hold_process_memory();
     use servosight::ui::jobs::{JobContext, JobStop};
     use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
     use std::sync::{Arc, atomic::AtomicBool};
@@ -986,6 +990,8 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
 /// without finishing it.
 #[test]
 fn cancelling_the_discrepancy_job_stops_the_analysis() {
+    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
+    let _memory = crate::common::hold_process_memory();
     use servosight::ui::jobs::{JobContext, JobMessage, JobStop};
     use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
     use std::sync::atomic::{AtomicBool, Ordering};
