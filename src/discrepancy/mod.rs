@@ -344,13 +344,13 @@ fn analyse_watched(
     let y_binned = bin_means(&residual, &bins);
     let mut store = Store::default();
     let mut members = Vec::new();
+    let longest = library::SELECTION_LONGEST_LAG_SHARE * ctx.duration_s;
     let grid: Vec<(usize, &Vec<f64>)> = families
         .iter()
         .enumerate()
         .flat_map(|(index, family)| family.grid.iter().map(move |theta| (index, theta)))
         .filter(|(index, theta)| {
             let family = &families[*index];
-            let longest = library::SELECTION_LONGEST_LAG_SHARE * ctx.duration_s;
             !family.lagged || family.lags(theta).iter().all(|lag| *lag <= longest)
         })
         .collect();
@@ -883,7 +883,6 @@ impl Joint<'_> {
         if !stateful {
             self.state = None;
         }
-        let active = self.active.iter().filter(|a| **a).count();
         for round in 0..JOINT_ROUNDS {
             if self
                 .watch
@@ -895,26 +894,23 @@ impl Joint<'_> {
             // single correction is chosen again from its whole family: the selection offered
             // only lags the recording can identify (`SELECTION_LONGEST_LAG_SHARE`), and the
             // physics, once named, may need a slower one to fit.
-            if active > 1 || round == 0 || stateful {
-                let state_ctx = self.state_context();
-                for k in 0..self.accepted.len() {
-                    if !self.active[k] {
-                        continue;
-                    }
-                    let mut others = vec![ones.clone()];
-                    others.extend(self.columns(&state_ctx, Some(k)));
-                    let (family, theta) = &self.accepted[k];
-                    let family_ref = &self.families[*family];
-                    let ctx = if family_ref.state {
-                        &state_ctx
-                    } else {
-                        self.ctx
-                    };
-                    let chosen = self.reselect(*family, theta, &others, ctx);
-                    let refined =
-                        refine_member(family_ref, &chosen, &others, ctx, self.bins, self.y);
-                    self.accepted[k].1 = refined;
+            let state_ctx = self.state_context();
+            for k in 0..self.accepted.len() {
+                if !self.active[k] {
+                    continue;
                 }
+                let mut others = vec![ones.clone()];
+                others.extend(self.columns(&state_ctx, Some(k)));
+                let (family, theta) = &self.accepted[k];
+                let family_ref = &self.families[*family];
+                let ctx = if family_ref.state {
+                    &state_ctx
+                } else {
+                    self.ctx
+                };
+                let chosen = self.reselect(*family, theta, &others, ctx);
+                let refined = refine_member(family_ref, &chosen, &others, ctx, self.bins, self.y);
+                self.accepted[k].1 = refined;
             }
             if !stateful {
                 break;
