@@ -26,14 +26,41 @@ pub fn arg(path: &Path) -> &str {
     path.to_str().expect("temporary paths are UTF-8")
 }
 
-/// Every test of the one integration binary shares its process. A test that judges the
-/// process's memory (the Modbus soak reads its own RSS) holds this for its whole run, and a
-/// test that allocates tens of megabytes holds it too, so neither counts the other's memory.
-pub static PROCESS_MEMORY: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// Set in a child process started by [`in_own_process`]: the test runs its body there.
+const OWN_PROCESS_VARIABLE: &str = "SERVOSIGHT_TEST_IN_OWN_PROCESS";
 
-/// Takes [`PROCESS_MEMORY`] (a test that panicked while holding it leaves it usable).
-pub fn hold_process_memory() -> std::sync::MutexGuard<'static, ()> {
-    PROCESS_MEMORY
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
+/// Runs the test `test_path` (e.g. `modbus_peer::soak_short_no_sample_lost_memory_flat`) alone
+/// in a fresh process of this test binary, for a test that judges the process's own memory:
+/// every other test of the one integration binary shares the process and would be counted.
+///
+/// Returns `true` in that child, where the caller runs its body; in the parent it waits for the
+/// child, fails the test with the child's output if the child failed, and returns `false`.
+pub fn in_own_process(test_path: &str) -> bool {
+    if std::env::var_os(OWN_PROCESS_VARIABLE).is_some() {
+        return true;
+    }
+    let output = Command::new(std::env::current_exe().expect("the test binary knows its path"))
+        .args([
+            test_path,
+            "--exact",
+            "--include-ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env(OWN_PROCESS_VARIABLE, "1")
+        .output()
+        .expect("the test binary runs again");
+    let out = stdout(&output);
+    let err = stderr(&output);
+    eprintln!("{err}");
+    println!("{out}");
+    assert!(
+        output.status.success(),
+        "{test_path} failed in its own process"
+    );
+    assert!(
+        out.contains("1 passed"),
+        "{test_path} did not run in its own process: {out}"
+    );
+    false
 }

@@ -594,8 +594,6 @@ fn rmse_limit(effect: Effect) -> f64 {
 /// correlated noise, on short recordings.
 #[test]
 fn every_concealed_effect_is_named_first_fitted_and_localised() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     let mut failures = Vec::new();
     for (i, effect) in VOCABULARY.into_iter().enumerate() {
         for (noise, seed) in [
@@ -618,8 +616,6 @@ fn every_concealed_effect_is_named_first_fitted_and_localised() {
 /// findings.
 #[test]
 fn negative_controls_are_consistent() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     let mut failures = Vec::new();
     let targets = [
         axis_column(AxisId::S, Quantity::StatorTemp),
@@ -707,8 +703,6 @@ pub fn two_effect_cases(seed: u64, noise: Noise) -> Vec<Case> {
 
 #[test]
 fn two_concealed_effects_are_both_named() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     let mut failures = Vec::new();
     // The pairs whose signatures differ enough to be separated every time; the full grid
     // (docs/discrepancy.md) also reports the pairs of slow heat effects, which are not.
@@ -1125,8 +1119,6 @@ fn with_column_mapped(recording: &Recording, column: &str, f: impl Fn(f64) -> f6
 /// by following the noise as well; docs/discrepancy.md lists this as a known limitation.)
 #[test]
 fn a_gain_and_offset_miscalibration_is_calibration_not_physics() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     let target = axis_column(AxisId::S, Quantity::StatorTemp);
     {
         let noise = Noise::White;
@@ -1170,8 +1162,6 @@ fn a_gain_and_offset_miscalibration_is_calibration_not_physics() {
 /// while the candidates are built, or in the selection — and it is not asked again after.
 #[test]
 fn an_observer_follows_the_analysis_and_can_stop_it() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     use servosight::discrepancy::{DiscrepancyError, analyse_observed};
     use std::sync::Mutex;
     use std::time::{Duration, Instant};

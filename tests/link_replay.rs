@@ -265,8 +265,6 @@ fn twin_profile_session(dir: &Path, source: servosight::ui::SourceSpec) -> servo
 
 #[test]
 fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
-    // A 1000× twin session allocates while it runs; the Modbus soak must not count it.
-    let _memory = crate::common::hold_process_memory();
     use servosight::ui::SourceSpec;
     use servosight::ui::session::SessionUpdate;
     let dir = tempfile::tempdir().unwrap();

@@ -715,9 +715,10 @@ fn out_of_bounds_unapproved_or_stale_writes_send_nothing() {
 
 /// Polls as fast as the line allows for `duration` and checks that no sample was lost between
 /// the peer and the recording, and that memory stays flat. Returns polls per second.
+///
+/// The memory check reads the process's RSS: run it from a test that
+/// [runs in its own process](crate::common::in_own_process).
 fn soak(duration: Duration, baud: Option<u32>) -> f64 {
-    // The memory check below reads the whole test process's RSS.
-    let _quiet = crate::common::hold_process_memory();
     require_tools();
     let dir = tempfile::tempdir().unwrap();
     let client_line = pty_pair(dir.path(), "client");
@@ -812,6 +813,9 @@ fn soak(duration: Duration, baud: Option<u32>) -> f64 {
 
 #[test]
 fn soak_short_no_sample_lost_memory_flat() {
+    if !crate::common::in_own_process("modbus_peer::soak_short_no_sample_lost_memory_flat") {
+        return;
+    }
     let rate = soak(Duration::from_secs(20), None);
     assert!(rate > 50.0, "{rate} polls/s");
 }
@@ -819,12 +823,18 @@ fn soak_short_no_sample_lost_memory_flat() {
 #[test]
 #[ignore = "10 minutes; run by hand: cargo test --test tests soak_ten_minutes -- --ignored --nocapture"]
 fn soak_ten_minutes() {
+    if !crate::common::in_own_process("modbus_peer::soak_ten_minutes") {
+        return;
+    }
     soak(Duration::from_secs(600), None);
 }
 
 #[test]
 #[ignore = "measures the sustained poll rate per baud rate for docs/performance.md (~1 min)"]
 fn poll_rate_per_baud() {
+    if !crate::common::in_own_process("modbus_peer::poll_rate_per_baud") {
+        return;
+    }
     for baud in [9600, 19_200, 38_400, 57_600, 115_200] {
         let rate = soak(Duration::from_secs(10), Some(baud));
         println!("baud {baud}: {rate:.1} polls/s");

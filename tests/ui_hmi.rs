@@ -638,8 +638,7 @@ fn shift_start_recording(dir: &std::path::Path) -> (std::path::PathBuf, f64) {
 fn the_warmup_checklist_is_driven_to_sign_off_and_saved() {
     use servosight::link::ReplayOptions;
     use servosight::ui::vm::warmup::{StepStatus, WarmupReport};
-    // Some 50 MB of full-rate history: not while the soak test watches the process's memory.
-    let _memory = crate::common::hold_process_memory();
+
     let dir = tempfile::tempdir().expect("temp dir");
     let (recording, lash_end) = shift_start_recording(dir.path());
     let mut profile = twin_profile();
@@ -823,8 +822,6 @@ fn discrepancy_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::P
 
 #[test]
 fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physics() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     let mut f = start();
     let (sim, real, target) = discrepancy_files(f._dir.path());
     let h = &mut f.harness;
@@ -920,8 +917,6 @@ fn a_missing_file_shows_the_error_in_the_model_lab() {
 /// recordings that do not overlap in time.
 #[test]
 fn the_discrepancy_job_reports_the_librarys_errors() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     use servosight::ui::jobs::{JobContext, JobStop};
     use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
     use std::sync::{Arc, atomic::AtomicBool};
@@ -990,8 +985,6 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
 /// without finishing it.
 #[test]
 fn cancelling_the_discrepancy_job_stops_the_analysis() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     use servosight::ui::jobs::{JobContext, JobMessage, JobStop};
     use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
     use std::sync::atomic::{AtomicBool, Ordering};

@@ -1049,8 +1049,6 @@ fn discrepancy_outcome(
 /// copper loss (findings and mismatch regions), the library's error, and a running analysis.
 #[test]
 fn discrepancy_view_models() {
-    // In-process analyses allocate tens of MB; the Modbus soak must not count them.
-    let _memory = crate::common::hold_process_memory();
     use crate::discrepancy::{Noise, case_for, make_pair};
     use servosight::sim::Effect;
     use servosight::ui::sim_vs_real::SharedColumns;
