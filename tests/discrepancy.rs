@@ -717,6 +717,32 @@ fn two_concealed_effects_are_both_named() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// A sensor drifting 0.4 K/h and the room's daily swing on the nut temperature over a day: a
+/// 9.6 K ramp and a 4 K wave, each of which alone leaves the other's large error, so neither
+/// clears surrogates made of both. Both are named, the first as masked by the second.
+#[test]
+fn two_slow_effects_that_mask_each_other_are_both_named_over_a_day() {
+    let mut case = two_effect_cases(1, Noise::Correlated)
+        .into_iter()
+        .find(|c| c.omitted == [Effect::SensorOffsetDrift, Effect::AmbientTemperature])
+        .expect("the drift and room pair is in the grid");
+    case.hours = 24.0;
+    let (outcome, checks) = verify_case(&case, &Options::default());
+    print_outcome(&outcome);
+    let problems = checks.problems(&case, 2.0, true);
+    assert!(problems.is_empty(), "{}", problems.join("; "));
+    let masked: Vec<(&str, Option<&str>)> = outcome
+        .report
+        .findings
+        .iter()
+        .map(|f| (f.physics.as_str(), f.masked_by.as_deref()))
+        .collect();
+    assert!(
+        masked.contains(&("sensor_offset_drift", Some("ambient_temperature"))),
+        "{masked:?}"
+    );
+}
+
 #[test]
 fn the_command_reports_bad_input_in_one_line() {
     let dir = tempfile::tempdir().unwrap();

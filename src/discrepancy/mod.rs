@@ -585,6 +585,7 @@ fn analyse_watched(
                         .iter()
                         .map(|&m| name_of(m))
                         .collect(),
+                    masked_by: s.step.masked_by.map(name_of),
                     alternatives: s
                         .step
                         .runners_up

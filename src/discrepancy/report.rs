@@ -45,6 +45,10 @@ pub struct Finding {
     pub p_value: f64,
     /// Other physics that fit these data about as well (the data cannot tell them apart).
     pub indistinguishable_from: Vec<String>,
+    /// Admitted together with this other physics: the two mask each other (each explains
+    /// most of the held-out error the other leaves), so `p_value`, this correction's test
+    /// alone, is not the evidence.
+    pub masked_by: Option<String>,
     /// The next best other physics at this step, with their gains relative to this one's.
     pub alternatives: Vec<Alternative>,
 }
@@ -244,6 +248,12 @@ impl DiscrepancyReport {
                 f.explanation
             );
             let _ = writeln!(s, "     signals: {}", f.signals.join(", "));
+            if let Some(partner) = &f.masked_by {
+                let _ = writeln!(
+                    s,
+                    "     admitted together with {partner}: each explains most of the held-out error the other leaves, so the p-value of its test alone is not the evidence"
+                );
+            }
             if !f.indistinguishable_from.is_empty() {
                 let _ = writeln!(
                     s,

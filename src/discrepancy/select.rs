@@ -83,6 +83,9 @@ pub struct Step {
     pub runners_up: Vec<(usize, f64)>,
     /// Members of other kinds whose held-out fit the data cannot tell apart from the winner's.
     pub indistinguishable: Vec<usize>,
+    /// Admitted as one of two effects that mask each other (see [`masked_pair`]): the partner
+    /// member, which the next step tests.
+    pub masked_by: Option<usize>,
 }
 
 /// The binned problem the selection works on.
@@ -269,7 +272,39 @@ struct ViewStep<'v> {
     grams: Vec<Option<ModelGram>>,
 }
 
-impl ViewStep<'_> {
+impl<'v> ViewStep<'v> {
+    /// The members of the kinds `competes` admits, each on top of `base` (columns already in
+    /// this view, the intercept first).
+    fn new(
+        problem: &Problem<'_>,
+        view: &'v View,
+        base: Vec<Vec<f64>>,
+        competes: impl Fn(Kind) -> bool,
+    ) -> ViewStep<'v> {
+        let blocks = problem.blocks;
+        let base_columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
+        let grams = problem
+            .members
+            .iter()
+            .map(|member| {
+                let kind = problem.families[member.family].kind;
+                let usable = member.columns.clone().all(|c| view.usable[c]);
+                if !competes(kind) || !usable || member.columns.is_empty() {
+                    return None;
+                }
+                let mut columns = base_columns.clone();
+                columns.extend(member.columns.clone().map(|c| view.columns[c].as_slice()));
+                Some(ModelGram::new(&columns, blocks))
+            })
+            .collect();
+        ViewStep {
+            view,
+            base_gram: ModelGram::new(&base_columns, blocks),
+            base,
+            grams,
+        }
+    }
+
     /// Relative held-out gains of every member for `y` (raw binned), and the base SSE.
     fn gains(&self, problem: &Problem<'_>, y: &[f64]) -> Option<(f64, Vec<Option<f64>>)> {
         let blocks = problem.blocks;
@@ -371,11 +406,12 @@ pub fn stepwise(
     watch: &Watch<'_>,
     span: std::ops::Range<f32>,
 ) -> Result<Vec<Step>, DiscrepancyError> {
-    let blocks = problem.blocks;
     let n = problem.y.len();
     let mut rng = StdRng::seed_from_u64(options.seed);
     let mut base: Vec<Vec<f64>> = vec![vec![1.0; n]];
     let mut chosen_kinds: Vec<Kind> = Vec::new();
+    // The kind of the partner a masked pair admitted at the step before is waiting for.
+    let mut partner_due: Option<Kind> = None;
     let mut steps = Vec::new();
     let per_step = (span.end - span.start) / options.max_steps.max(1) as f32;
     for step in 0..options.max_steps {
@@ -395,27 +431,9 @@ pub fn stepwise(
                 .map(|c| view.transform(c))
                 .filter(|c| std_dev(c) > 1e-9 || view.highpass.is_none())
                 .collect();
-            let base_columns: Vec<&[f64]> = view_base.iter().map(|c| c.as_slice()).collect();
-            let grams = problem
-                .members
-                .iter()
-                .map(|member| {
-                    let kind = problem.families[member.family].kind;
-                    let usable = member.columns.clone().all(|c| view.usable[c]);
-                    if chosen_kinds.contains(&kind) || !usable || member.columns.is_empty() {
-                        return None;
-                    }
-                    let mut columns = base_columns.clone();
-                    columns.extend(member.columns.clone().map(|c| view.columns[c].as_slice()));
-                    Some(ModelGram::new(&columns, blocks))
-                })
-                .collect();
-            ViewStep {
-                view,
-                base_gram: ModelGram::new(&base_columns, blocks),
-                base: view_base,
-                grams,
-            }
+            ViewStep::new(problem, view, view_base, |kind| {
+                !chosen_kinds.contains(&kind)
+            })
         });
         let observed: Vec<Option<(f64, Vec<Option<f64>>)>> = view_steps
             .iter()
@@ -439,26 +457,17 @@ pub fn stepwise(
             .map(|i| base_columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum())
             .collect();
         let residual: Vec<f64> = problem.y.iter().zip(&fitted).map(|(y, f)| y - f).collect();
-        let spectrum = SurrogateSpectrum::new(&residual);
-        // null[j][v] = the largest relative gain of any member in view v for surrogate j.
-        let surrogate_targets: Vec<Vec<f64>> = (0..options.surrogates)
-            .map(|_| {
-                let noise = spectrum.draw(&mut rng);
-                fitted.iter().zip(&noise).map(|(f, e)| f + e).collect()
-            })
-            .collect();
-        let per_view: Vec<Vec<f64>> =
-            parallel_map(&view_steps, |v| v.max_gains(problem, &surrogate_targets));
-        let null: Vec<Vec<f64>> = (0..surrogate_targets.len())
-            .map(|j| per_view.iter().map(|v| v[j]).collect())
-            .collect();
+        let null = surrogate_null(
+            problem,
+            &view_steps,
+            &fitted,
+            &residual,
+            options.surrogates,
+            &mut rng,
+        );
         // Min-P over the views: each view's best gain gets a p-value against that view's
         // null maxima, and the smallest is compared with the smallest of every surrogate, so
         // looking twice is paid for. Ties go to the data as they are (view 0).
-        let surrogates = null.len().max(1) as f64;
-        let p_in_view = |v: usize, value: f64| -> f64 {
-            null.iter().filter(|row| row[v] >= value).count() as f64 / surrogates
-        };
         let mut best: Option<(usize, usize, f64)> = None; // (member, view, p)
         for (v, outcome) in observed.iter().enumerate() {
             let Some((_, gains)) = outcome else { continue };
@@ -470,33 +479,60 @@ pub fn stepwise(
             else {
                 continue;
             };
-            let p = p_in_view(v, g);
+            let p = p_in_view(&null, v, g);
             if best.is_none_or(|(_, _, b)| p < b) {
                 best = Some((m, v, p));
             }
         }
-        let Some((winner, best_view, best_p)) = best else {
+        let Some((winner, best_view, _)) = best else {
             break;
         };
-        let exceed = null
-            .iter()
-            .filter(|row| {
-                (0..row.len())
-                    .map(|v| p_in_view(v, row[v]))
-                    .fold(f64::INFINITY, f64::min)
-                    <= best_p
-            })
-            .count();
-        let p_value = (1 + exceed) as f64 / (options.surrogates + 1) as f64;
+        let winner_gain = observed[best_view]
+            .as_ref()
+            .and_then(|(_, g)| g[winner])
+            .unwrap_or(0.0);
+        let mut p_value = min_p_value(&null, best_view, winner_gain);
+        // A winner that explains most of the held-out error leaves a residual made mostly of
+        // its own shape, and surrogates of that residual are surrogates of the effect: as
+        // slow and as large, so a flexible slow correction fits some of them as well. Its
+        // noise is what it leaves: the null is drawn from the residual after it (the fitted
+        // part stays the base model's, as for every surrogate). Only for a dominant winner —
+        // noise leaves no candidate that large (the negative controls' best stays below half).
+        if winner_gain >= options.dominant_gain && p_value > options.alpha {
+            let mut with_winner = base_columns.clone();
+            with_winner.extend(
+                problem.members[winner]
+                    .columns
+                    .clone()
+                    .map(|c| problem.store.columns[c].as_slice()),
+            );
+            if let Some((beta, _)) = least_squares(&with_winner, problem.y) {
+                let left: Vec<f64> = (0..n)
+                    .map(|i| {
+                        problem.y[i]
+                            - with_winner
+                                .iter()
+                                .zip(&beta)
+                                .map(|(c, b)| c[i] * b)
+                                .sum::<f64>()
+                    })
+                    .collect();
+                let null_after = surrogate_null(
+                    problem,
+                    &view_steps,
+                    &fitted,
+                    &left,
+                    options.surrogates,
+                    &mut rng,
+                );
+                p_value = min_p_value(&null_after, best_view, winner_gain);
+            }
+        }
         // Beating every surrogate happens by chance once in (surrogates + 1) steps. A finding
         // must also stand clear of the surrogates' maxima: the upper tail of a Gumbel
         // (extreme-value) law fitted to them must put it beyond `options.tail_alpha` — unless
         // it explains most of the held-out error, which noise that its own surrogates cannot
         // match does not do.
-        let winner_gain = observed[best_view]
-            .as_ref()
-            .and_then(|(_, g)| g[winner])
-            .unwrap_or(0.0);
         let tail_p = Gumbel::fit(
             &null
                 .iter()
@@ -528,27 +564,52 @@ pub fn stepwise(
         let relative = gains[winner].unwrap_or(0.0);
         let accepted =
             p_value <= options.alpha && relative >= options.min_relative_gain && clear_of_null;
+        let masked = match (&observed[0], accepted || partner_due.is_some()) {
+            (Some((raw_sse0, raw)), false) => {
+                masked_pair(problem, &view_steps[0], raw, &chosen_kinds, options)
+                    .map(|pair| (pair, *raw_sse0, raw))
+            }
+            _ => None,
+        };
+        // The partner of a masked pair admitted at the step before holds by dominance alone:
+        // the pair was admitted because each explains most of what the other leaves.
+        let partner_holds = !accepted
+            && partner_due.is_some_and(|kind| {
+                kind == problem.families[problem.members[best].family].kind
+                    && observed[0]
+                        .as_ref()
+                        .and_then(|(_, raw)| raw[best])
+                        .is_some_and(|g| g >= options.dominant_gain)
+            });
+        partner_due = None;
+        if let Some((pair, raw_sse0, raw)) = masked {
+            let first = pair.first;
+            steps.push(Step {
+                member: first,
+                gain: raw[first].unwrap_or(0.0) * raw_sse0,
+                sse_before: raw_sse0,
+                p_value,
+                tail_p,
+                accepted: true,
+                runners_up: runners_of(problem, raw, first),
+                indistinguishable: Vec::new(),
+                masked_by: Some(pair.partner),
+            });
+            watch.report(at(0.7), || {
+                format!("selection step {}: refitting the corrections", step + 1)
+            })?;
+            chosen_kinds.push(problem.families[problem.members[first].family].kind);
+            partner_due = Some(problem.families[problem.members[pair.partner].family].kind);
+            let refined = accept(first, &base);
+            base.truncate(1);
+            base.extend(refined);
+            continue;
+        }
+        let accepted = accepted || partner_holds;
 
         // The best member of every other kind in the winning view, for the "could it be
         // something else" check.
-        let best_kind = problem.families[problem.members[best].family].kind;
-        let mut runners: Vec<(usize, f64)> = Vec::new();
-        for (i, g) in gains.iter().enumerate() {
-            let Some(g) = *g else { continue };
-            let kind = problem.families[problem.members[i].family].kind;
-            if kind == best_kind {
-                continue;
-            }
-            match runners
-                .iter_mut()
-                .find(|(j, _)| problem.families[problem.members[*j].family].kind == kind)
-            {
-                Some(entry) if entry.1 < g => *entry = (i, g),
-                Some(_) => {}
-                None => runners.push((i, g)),
-            }
-        }
-        runners.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let runners = runners_of(problem, gains, best);
         let indistinguishable = if accepted {
             indistinguishable_from(problem, &view_steps[best_view], best, &runners, options)
         } else {
@@ -599,6 +660,7 @@ pub fn stepwise(
             accepted,
             runners_up: runners,
             indistinguishable,
+            masked_by: None,
         });
         if !accepted {
             break;
@@ -607,12 +669,183 @@ pub fn stepwise(
             format!("selection step {}: refitting the corrections", step + 1)
         })?;
         chosen_kinds.push(best_kind);
+        // The joint refit returns every active correction as it is now: the base is rebuilt
+        // from them, not extended, so a refitted correction does not also stay in its old form.
         let refined = accept(best, &base);
+        base.truncate(1);
         base.extend(refined);
     }
     // A refit the observer stopped half-way is not a result.
     watch.report(span.end, || "selection done".into())?;
     Ok(steps)
+}
+
+/// The surrogates' null: `null[j][v]` is the largest relative gain of any member in view `v`
+/// for surrogate `j`, which is `fitted` plus a phase-randomised draw of `noise` (same
+/// amplitude spectrum, so the same autocorrelation).
+fn surrogate_null(
+    problem: &Problem<'_>,
+    view_steps: &[ViewStep<'_>],
+    fitted: &[f64],
+    noise: &[f64],
+    count: usize,
+    rng: &mut StdRng,
+) -> Vec<Vec<f64>> {
+    let spectrum = SurrogateSpectrum::new(noise);
+    let targets: Vec<Vec<f64>> = (0..count)
+        .map(|_| {
+            let draw = spectrum.draw(rng);
+            fitted.iter().zip(&draw).map(|(f, e)| f + e).collect()
+        })
+        .collect();
+    let per_view: Vec<Vec<f64>> = parallel_map(view_steps, |v| v.max_gains(problem, &targets));
+    (0..targets.len())
+        .map(|j| per_view.iter().map(|v| v[j]).collect())
+        .collect()
+}
+
+/// The share of surrogates whose best gain in view `v` reaches `gain`.
+fn p_in_view(null: &[Vec<f64>], v: usize, gain: f64) -> f64 {
+    null.iter().filter(|row| row[v] >= gain).count() as f64 / null.len().max(1) as f64
+}
+
+/// The min-P p-value of `gain` in view `view`: its p-value in its view is compared with every
+/// surrogate's smallest p-value over the views, so looking at several views is paid for
+/// (resolution 1/(surrogates + 1)).
+fn min_p_value(null: &[Vec<f64>], view: usize, gain: f64) -> f64 {
+    let observed = p_in_view(null, view, gain);
+    let exceed = null
+        .iter()
+        .filter(|row| {
+            (0..row.len())
+                .map(|v| p_in_view(null, v, row[v]))
+                .fold(f64::INFINITY, f64::min)
+                <= observed
+        })
+        .count();
+    (1 + exceed) as f64 / (null.len() + 1) as f64
+}
+
+/// The best member of every kind other than `best`'s, with its gain, strongest first: what
+/// else could explain the step.
+fn runners_of(problem: &Problem<'_>, gains: &[Option<f64>], best: usize) -> Vec<(usize, f64)> {
+    let kind_of = |m: usize| problem.families[problem.members[m].family].kind;
+    let best_kind = kind_of(best);
+    let mut runners: Vec<(usize, f64)> = Vec::new();
+    for (i, g) in gains.iter().enumerate() {
+        let Some(g) = *g else { continue };
+        let kind = kind_of(i);
+        if kind == best_kind {
+            continue;
+        }
+        match runners.iter_mut().find(|(j, _)| kind_of(*j) == kind) {
+            Some(entry) if entry.1 < g => *entry = (i, g),
+            Some(_) => {}
+            None => runners.push((i, g)),
+        }
+    }
+    runners.sort_by(|a, b| b.1.total_cmp(&a.1));
+    runners
+}
+
+/// Kinds tried as the first of a masked pair: the best few of a step.
+const MASKED_PAIR_CANDIDATES: usize = 4;
+
+/// Two effects concealed at once, both slow and large, can mask each other: each alone leaves
+/// the other's large error, so neither explains the share of the held-out error that would
+/// clear the surrogates (which, phase-randomised from a residual made of both, are as slow and
+/// as large). A pair is admitted when each member explains at least `dominant_gain` of the
+/// held-out error the other leaves — the test a single dominant effect passes, passed by each
+/// given the other — and both are grid members of kinds not chosen yet. Tried only when the
+/// step's best member alone explains at least half of the held-out error (a gross mismatch;
+/// noise that its surrogates match does not). Judged in the data as they are (`raw`, the
+/// gains of the step's first view); returns the member to admit first (the larger gain alone)
+/// and its partner.
+fn masked_pair(
+    problem: &Problem<'_>,
+    raw: &ViewStep<'_>,
+    gains: &[Option<f64>],
+    chosen_kinds: &[Kind],
+    options: &Options,
+) -> Option<MaskedPair> {
+    let kind_of = |m: usize| problem.families[problem.members[m].family].kind;
+    let mut firsts: Vec<(usize, f64)> = Vec::new();
+    for (m, g) in gains.iter().enumerate() {
+        let Some(g) = *g else { continue };
+        let kind = kind_of(m);
+        match firsts.iter_mut().find(|(j, _)| kind_of(*j) == kind) {
+            Some(entry) if entry.1 < g => *entry = (m, g),
+            Some(_) => {}
+            None => firsts.push((m, g)),
+        }
+    }
+    firsts.sort_by(|a, b| b.1.total_cmp(&a.1));
+    if firsts.first().is_none_or(|(_, g)| *g < 0.5) {
+        return None;
+    }
+    firsts.truncate(MASKED_PAIR_CANDIDATES);
+    let view = raw.view;
+    let with = |member: usize| -> Vec<Vec<f64>> {
+        let mut base = raw.base.clone();
+        base.extend(
+            problem.members[member]
+                .columns
+                .clone()
+                .map(|c| view.columns[c].clone()),
+        );
+        base
+    };
+    let mut best: Option<(MaskedPair, f64)> = None; // and the error the pair leaves
+    for &(first, first_alone) in &firsts {
+        let first_kind = kind_of(first);
+        let given_first = ViewStep::new(problem, view, with(first), |kind| {
+            kind != first_kind && !chosen_kinds.contains(&kind)
+        });
+        let Some((sse_given_first, partner_gains)) = given_first.gains(problem, problem.y) else {
+            continue;
+        };
+        let Some((partner, partner_given_first)) = partner_gains
+            .iter()
+            .enumerate()
+            .filter_map(|(m, g)| g.map(|g| (m, g)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            continue;
+        };
+        if partner_given_first < options.dominant_gain {
+            continue;
+        }
+        let given_partner = ViewStep::new(problem, view, with(partner), |kind| kind == first_kind);
+        let Some(first_given_partner) = given_partner
+            .gains(problem, problem.y)
+            .and_then(|(_, g)| g[first])
+        else {
+            continue;
+        };
+        if first_given_partner < options.dominant_gain {
+            continue;
+        }
+        let left = sse_given_first * (1.0 - partner_given_first);
+        if best.as_ref().is_none_or(|(_, l)| left < *l) {
+            let partner_alone = gains[partner].unwrap_or(f64::NEG_INFINITY);
+            let (first, partner) = if partner_alone > first_alone {
+                (partner, first)
+            } else {
+                (first, partner)
+            };
+            best = Some((MaskedPair { first, partner }, left));
+        }
+    }
+    best.map(|(pair, _)| pair)
+}
+
+/// Two members that mask each other (see [`masked_pair`]).
+#[derive(Debug, Clone, Copy)]
+struct MaskedPair {
+    /// Admitted at this step.
+    first: usize,
+    /// Tested at the next.
+    partner: usize,
 }
 
 /// Runners-up whose held-out errors, block by block, are not significantly worse than the

@@ -247,7 +247,7 @@ fn result_ui(ui: &mut egui::Ui, r: &DiscrepancyResultView) {
             .collect();
         ui.monospace(parameters.join(";  "));
         ui.label(format!("signals: {}", f.signals));
-        if let Some(note) = &f.indistinguishable {
+        for note in [&f.indistinguishable, &f.masked_by].into_iter().flatten() {
             ui.label(note);
         }
     }

@@ -57,6 +57,9 @@ pub struct FindingView {
     pub p_value: String,
     /// "the data cannot tell this apart from …", when so.
     pub indistinguishable: Option<String>,
+    /// "admitted together with …", when it was found as one of two effects that mask each
+    /// other.
+    pub masked_by: Option<String>,
 }
 
 /// R² and RMSE of one stage.
@@ -227,6 +230,11 @@ fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> DiscrepancyRe
                     format!(
                         "the data cannot tell this apart from: {}",
                         f.indistinguishable_from.join(", ")
+                    )
+                }),
+                masked_by: f.masked_by.as_ref().map(|partner| {
+                    format!(
+                        "admitted together with {partner}: each explains most of the held-out error the other leaves"
                     )
                 }),
             })
