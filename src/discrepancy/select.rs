@@ -491,43 +491,7 @@ pub fn stepwise(
             .as_ref()
             .and_then(|(_, g)| g[winner])
             .unwrap_or(0.0);
-        let mut p_value = min_p_value(&null, best_view, winner_gain);
-        // A winner that explains most of the held-out error leaves a residual made mostly of
-        // its own shape, and surrogates of that residual are surrogates of the effect: as
-        // slow and as large, so a flexible slow correction fits some of them as well. Its
-        // noise is what it leaves: the null is drawn from the residual after it (the fitted
-        // part stays the base model's, as for every surrogate). Only for a dominant winner —
-        // noise leaves no candidate that large (the negative controls' best stays below half).
-        if winner_gain >= options.dominant_gain && p_value > options.alpha {
-            let mut with_winner = base_columns.clone();
-            with_winner.extend(
-                problem.members[winner]
-                    .columns
-                    .clone()
-                    .map(|c| problem.store.columns[c].as_slice()),
-            );
-            if let Some((beta, _)) = least_squares(&with_winner, problem.y) {
-                let left: Vec<f64> = (0..n)
-                    .map(|i| {
-                        problem.y[i]
-                            - with_winner
-                                .iter()
-                                .zip(&beta)
-                                .map(|(c, b)| c[i] * b)
-                                .sum::<f64>()
-                    })
-                    .collect();
-                let null_after = surrogate_null(
-                    problem,
-                    &view_steps,
-                    &fitted,
-                    &left,
-                    options.surrogates,
-                    &mut rng,
-                );
-                p_value = min_p_value(&null_after, best_view, winner_gain);
-            }
-        }
+        let p_value = min_p_value(&null, best_view, winner_gain);
         // Beating every surrogate happens by chance once in (surrogates + 1) steps. A finding
         // must also stand clear of the surrogates' maxima: the upper tail of a Gumbel
         // (extreme-value) law fitted to them must put it beyond `options.tail_alpha` — unless
@@ -751,12 +715,19 @@ fn runners_of(problem: &Problem<'_>, gains: &[Option<f64>], best: usize) -> Vec<
 /// Kinds tried as the first of a masked pair: the best few of a step.
 const MASKED_PAIR_CANDIDATES: usize = 4;
 
+/// Two corrections whose fitted contributions correlate below this cancel each other: one
+/// fits what the other overshoots, and two such slow corrections fit slow noise together
+/// (−0.97 in a negative control with hour-long correlated noise; masking effects: −0.19 to
+/// −0.50).
+const MASKED_PAIR_CANCELLING_CORRELATION: f64 = -0.8;
+
 /// Two effects concealed at once, both slow and large, can mask each other: each alone leaves
 /// the other's large error, so neither explains the share of the held-out error that would
 /// clear the surrogates (which, phase-randomised from a residual made of both, are as slow and
 /// as large). A pair is admitted when each member explains at least `dominant_gain` of the
 /// held-out error the other leaves — the test a single dominant effect passes, passed by each
-/// given the other — and both are grid members of kinds not chosen yet. Tried only when the
+/// given the other — both are grid members of kinds not chosen yet, and they do not cancel
+/// (see [`MASKED_PAIR_CANCELLING_CORRELATION`]). Tried only when the
 /// step's best member alone explains at least half of the held-out error (a gross mismatch;
 /// noise that its surrogates match does not). Judged in the data as they are (`raw`, the
 /// gains of the step's first view); returns the member to admit first (the larger gain alone)
@@ -825,9 +796,14 @@ fn masked_pair(
         if first_given_partner < options.dominant_gain {
             continue;
         }
+        if contributions_correlation(problem, raw, first, partner)
+            .is_none_or(|r| r < MASKED_PAIR_CANCELLING_CORRELATION)
+        {
+            continue;
+        }
+        let partner_alone = gains[partner].unwrap_or(f64::NEG_INFINITY);
         let left = sse_given_first * (1.0 - partner_given_first);
         if best.as_ref().is_none_or(|(_, l)| left < *l) {
-            let partner_alone = gains[partner].unwrap_or(f64::NEG_INFINITY);
             let (first, partner) = if partner_alone > first_alone {
                 (partner, first)
             } else {
@@ -837,6 +813,41 @@ fn masked_pair(
         }
     }
     best.map(|(pair, _)| pair)
+}
+
+/// The correlation of two members' fitted contributions when both are fitted on top of the
+/// base (data as they are): near −1 when they cancel, one fitting what the other overshoots.
+fn contributions_correlation(
+    problem: &Problem<'_>,
+    raw: &ViewStep<'_>,
+    a: usize,
+    b: usize,
+) -> Option<f64> {
+    let view = raw.view;
+    let mut columns: Vec<&[f64]> = raw.base.iter().map(|c| c.as_slice()).collect();
+    let a_columns = problem.members[a].columns.clone();
+    let b_columns = problem.members[b].columns.clone();
+    columns.extend(a_columns.clone().map(|c| view.columns[c].as_slice()));
+    columns.extend(b_columns.clone().map(|c| view.columns[c].as_slice()));
+    let (beta, _) = least_squares(&columns, problem.y)?;
+    let n = problem.y.len();
+    let a_start = raw.base.len();
+    let b_start = a_start + a_columns.len();
+    let part = |start: usize, len: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| (start..start + len).map(|k| columns[k][i] * beta[k]).sum())
+            .collect()
+    };
+    let pa = part(a_start, a_columns.len());
+    let pb = part(b_start, b_columns.len());
+    let (ma, mb) = (mean(&pa), mean(&pb));
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in pa.iter().zip(&pb) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    (saa > 0.0 && sbb > 0.0).then(|| sab / (saa * sbb).sqrt())
 }
 
 /// Two members that mask each other (see [`masked_pair`]).
