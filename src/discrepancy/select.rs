@@ -471,12 +471,7 @@ pub fn stepwise(
         let mut best: Option<(usize, usize, f64)> = None; // (member, view, p)
         for (v, outcome) in observed.iter().enumerate() {
             let Some((_, gains)) = outcome else { continue };
-            let Some((m, g)) = gains
-                .iter()
-                .enumerate()
-                .filter_map(|(m, g)| g.map(|g| (m, g)))
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-            else {
+            let Some((m, g)) = best_member(gains) else {
                 continue;
             };
             let p = p_in_view(&null, v, g);
@@ -693,23 +688,41 @@ fn min_p_value(null: &[Vec<f64>], view: usize, gain: f64) -> f64 {
 /// The best member of every kind other than `best`'s, with its gain, strongest first: what
 /// else could explain the step.
 fn runners_of(problem: &Problem<'_>, gains: &[Option<f64>], best: usize) -> Vec<(usize, f64)> {
+    let best_kind = problem.families[problem.members[best].family].kind;
+    best_per_kind(problem, gains, Some(best_kind))
+}
+
+/// The member with the largest gain, and the gain.
+fn best_member(gains: &[Option<f64>]) -> Option<(usize, f64)> {
+    gains
+        .iter()
+        .enumerate()
+        .filter_map(|(m, g)| g.map(|g| (m, g)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// The best member of every kind but `except`, with its gain, strongest first.
+fn best_per_kind(
+    problem: &Problem<'_>,
+    gains: &[Option<f64>],
+    except: Option<Kind>,
+) -> Vec<(usize, f64)> {
     let kind_of = |m: usize| problem.families[problem.members[m].family].kind;
-    let best_kind = kind_of(best);
-    let mut runners: Vec<(usize, f64)> = Vec::new();
+    let mut best: Vec<(usize, f64)> = Vec::new();
     for (i, g) in gains.iter().enumerate() {
         let Some(g) = *g else { continue };
         let kind = kind_of(i);
-        if kind == best_kind {
+        if Some(kind) == except {
             continue;
         }
-        match runners.iter_mut().find(|(j, _)| kind_of(*j) == kind) {
+        match best.iter_mut().find(|(j, _)| kind_of(*j) == kind) {
             Some(entry) if entry.1 < g => *entry = (i, g),
             Some(_) => {}
-            None => runners.push((i, g)),
+            None => best.push((i, g)),
         }
     }
-    runners.sort_by(|a, b| b.1.total_cmp(&a.1));
-    runners
+    best.sort_by(|a, b| b.1.total_cmp(&a.1));
+    best
 }
 
 /// Kinds tried as the first of a masked pair: the best few of a step.
@@ -740,17 +753,7 @@ fn masked_pair(
     options: &Options,
 ) -> Option<MaskedPair> {
     let kind_of = |m: usize| problem.families[problem.members[m].family].kind;
-    let mut firsts: Vec<(usize, f64)> = Vec::new();
-    for (m, g) in gains.iter().enumerate() {
-        let Some(g) = *g else { continue };
-        let kind = kind_of(m);
-        match firsts.iter_mut().find(|(j, _)| kind_of(*j) == kind) {
-            Some(entry) if entry.1 < g => *entry = (m, g),
-            Some(_) => {}
-            None => firsts.push((m, g)),
-        }
-    }
-    firsts.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut firsts = best_per_kind(problem, gains, None);
     if firsts.first().is_none_or(|(_, g)| *g < 0.5) {
         return None;
     }
@@ -775,12 +778,7 @@ fn masked_pair(
         let Some((sse_given_first, partner_gains)) = given_first.gains(problem, problem.y) else {
             continue;
         };
-        let Some((partner, partner_given_first)) = partner_gains
-            .iter()
-            .enumerate()
-            .filter_map(|(m, g)| g.map(|g| (m, g)))
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-        else {
+        let Some((partner, partner_given_first)) = best_member(&partner_gains) else {
             continue;
         };
         if partner_given_first < options.dominant_gain {
