@@ -2,6 +2,7 @@
 //! simulation interpolated onto it when the grids differ.
 
 use super::DiscrepancyError;
+use super::censor::Censoring;
 use crate::signal::Recording;
 
 /// Fewest overlapping rows an analysis accepts.
@@ -22,8 +23,11 @@ pub struct Aligned<'a> {
     pub time: Vec<f64>,
     /// The real target.
     pub real_target: Vec<f64>,
-    /// The simulated target on the real grid.
+    /// The simulated target on the real grid — as the real instrument would read it when the
+    /// real recording is censored at a floor (see [`Censoring`]).
     pub sim_target: Vec<f64>,
+    /// The real target's floor and the noise cut off there, when it has one.
+    pub censoring: Option<Censoring>,
 }
 
 impl<'a> Aligned<'a> {
@@ -96,9 +100,16 @@ impl<'a> Aligned<'a> {
             time,
             real_target: Vec::new(),
             sim_target: Vec::new(),
+            censoring: None,
         };
         aligned.real_target = aligned.real_column(target).unwrap_or_default();
         aligned.sim_target = aligned.sim_column(target).unwrap_or_default();
+        aligned.censoring = Censoring::detect(&aligned.real_target, &aligned.sim_target);
+        if let Some(censoring) = aligned.censoring {
+            for value in &mut aligned.sim_target {
+                *value = censoring.expected_reading(*value);
+            }
+        }
         Ok(aligned)
     }
 
@@ -144,13 +155,23 @@ impl<'a> Aligned<'a> {
             self.time.first().copied().unwrap_or(0.0),
             self.time.last().copied().unwrap_or(0.0)
         );
-        if self.resampled {
+        let joined = if self.resampled {
             format!(
                 "the time grids differ: the simulation ({} rows) was linearly interpolated onto the real recording's grid; {span}",
                 self.sim.len()
             )
         } else {
             format!("both recordings share the time grid; {span}")
+        };
+        match self.censoring {
+            Some(c) => format!(
+                "{joined}; the real target reads exactly {} in {:.1} % of the rows (an instrument that cannot read below it), so the simulation is compared as it would read: E[max({}, sim + noise)] with the noise σ = {:.4} estimated where the simulation is at that floor",
+                c.floor,
+                100.0 * c.share_at_floor,
+                c.floor,
+                c.sigma
+            ),
+            None => joined,
         }
     }
 }

@@ -33,6 +33,7 @@
 //! ```
 
 pub mod align;
+pub mod censor;
 pub mod cv;
 pub mod library;
 pub mod localise;
@@ -711,6 +712,7 @@ fn analyse_watched(
             note: aligned.note(),
             start_s: ctx.time.first().copied().unwrap_or(0.0),
             end_s: ctx.time.last().copied().unwrap_or(0.0),
+            censoring: aligned.censoring,
         },
         not_tested,
         method: Method {

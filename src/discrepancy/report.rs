@@ -97,6 +97,9 @@ pub struct Alignment {
     pub start_s: f64,
     /// Last aligned time, s.
     pub end_s: f64,
+    /// The real target's floor (a magnitude that cannot read below zero) and the noise cut off
+    /// there; when present the simulation was compared as the instrument would read it.
+    pub censoring: Option<super::censor::Censoring>,
 }
 
 /// A physics that could not be tried, and why.

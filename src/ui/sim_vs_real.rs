@@ -197,6 +197,7 @@ mod tests {
                 note: String::new(),
                 start_s: 0.0,
                 end_s: 999.0,
+                censoring: None,
             },
             not_tested: Vec::new(),
             method: crate::discrepancy::Method {
