@@ -796,26 +796,31 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     format!("no `{}` column", axis_column(axis, Quantity::Current)),
                 )),
             }
-            if axis_signals.torque.is_some() && (temperature || axis_signals.stator.is_some()) {
+            // On a thermal target the lubricant shows in the bearings' drag heat, which the
+            // speed alone gives; on an effort, in the drive's friction power.
+            let drag_heat = matches!(
+                ctx.class,
+                TargetClass::Temperature | TargetClass::Displacement
+            );
+            if (drag_heat || axis_signals.torque.is_some())
+                && (temperature || axis_signals.stator.is_some())
+            {
                 let warmth_signal = if temperature {
                     simulated.clone()
                 } else {
                     axis_column(axis, Quantity::StatorTemp)
                 };
+                let mut signals = vec![speed_name.clone(), warmth_signal];
+                if !drag_heat {
+                    signals.insert(0, axis_column(axis, Quantity::Torque));
+                }
                 let family = thermal_family(
                     Physics::LubricantViscosity,
-                    vec![
-                        axis_column(axis, Quantity::Torque),
-                        speed_name.clone(),
-                        warmth_signal,
-                    ],
+                    signals,
                     vec!["tau_s", "lag_ratio"],
                     thermal_grid(&taus, &[]),
                     Box::new(move |ctx, _| {
                         let Some(a) = ctx.axis(axis) else {
-                            return vec![];
-                        };
-                        let Some(torque) = a.torque.as_ref() else {
                             return vec![];
                         };
                         let warmth: &[f64] = if ctx.class == TargetClass::Temperature {
@@ -824,12 +829,25 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             a.stator.as_deref().unwrap_or(&[])
                         };
                         let w_mean = mean(warmth);
-                        // Friction power, and the share of it that falls as the oil warms.
-                        let power: Vec<f64> = torque
-                            .iter()
-                            .zip(&a.speed)
-                            .map(|(t, n)| (t * n).abs() * std::f64::consts::PI / 30.0)
-                            .collect();
+                        // Friction heat, and the share of it that falls as the oil warms. On a
+                        // thermal target it is the bearings' drag heat alone (Palmgren: M₀ ∝
+                        // (ν n)^(2/3), so the heat ∝ ν^(2/3) n^(5/3)) — the drive's power also
+                        // carries the cut, which no lubricant changes.
+                        let power: Vec<f64> = if drag_heat {
+                            a.speed
+                                .iter()
+                                .map(|n| (n.abs() / 1000.0).powf(5.0 / 3.0))
+                                .collect()
+                        } else {
+                            let Some(torque) = a.torque.as_ref() else {
+                                return vec![];
+                            };
+                            torque
+                                .iter()
+                                .zip(&a.speed)
+                                .map(|(t, n)| (t * n).abs() * std::f64::consts::PI / 30.0)
+                                .collect()
+                        };
                         let falling = power
                             .iter()
                             .zip(warmth)
@@ -1216,7 +1234,7 @@ pub fn explain(
                 p.insert("temperature_coefficient_per_K".into(), falling);
                 p.insert("percent_per_K".into(), relative);
                 format!(
-                    "friction heat of the {axis_name} axis falls as the lubricant warms ({falling:+.3e}{unit} per W·K), through τ = {tau_min:.0} min"
+                    "the {axis_name} bearings' drag heat (Palmgren, ∝ n^(5/3)) differs from the simulation's: {extra:+.3}{unit} at a steady 1000 rpm, falling by {falling:+.3}{unit} per K as the lubricant warms ({relative:+.1} %/K), through τ = {tau_min:.0} min"
                 )
             }
         }
