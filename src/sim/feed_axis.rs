@@ -46,6 +46,8 @@ struct MotionPlanner {
     forward: bool,
     acceleration: f64,
     rapid_mm_per_s: f64,
+    /// When the planner was last asked for a move.
+    checked_s: f64,
 }
 
 impl MotionPlanner {
@@ -74,9 +76,19 @@ impl MotionPlanner {
         feed_per_rev_mm: f64,
         spindle_rpm: f64,
     ) -> bool {
+        let checked_s = std::mem::replace(&mut self.checked_s, t);
         if self.busy(t) {
             return true;
         }
+        // The controller starts the next move the moment the axis is free, not at the next
+        // sub-step: quantising every move to the sub-step grid would make cycle times whole
+        // multiples of it, locked in phase to the recording's sample times, and a 1 Hz recording
+        // would then see the same instant of every cycle (aliasing that a real machine does not
+        // have).
+        let start_s = match self.current {
+            Some(m) if m.dwell_end_s > checked_s => m.dwell_end_s,
+            _ => t,
+        };
         let here = self
             .current
             .map_or(self.rest_mm, |m| m.profile.at(f64::INFINITY).0);
@@ -139,10 +151,10 @@ impl MotionPlanner {
         if let Some(m) = next {
             let speed = (m.feed_mm_per_min / 60.0).min(self.rapid_mm_per_s);
             let profile = TrapezoidMove::new(here, m.target_mm - here, speed, self.acceleration);
-            let end_s = t + profile.duration_s();
+            let end_s = start_s + profile.duration_s();
             self.previous = self.current;
             self.current = Some(ActiveMove {
-                start_s: t,
+                start_s,
                 profile,
                 end_s,
                 dwell_end_s: end_s + m.dwell_s,
@@ -270,6 +282,7 @@ impl FeedAxisModel {
             forward: true,
             acceleration: params.acceleration_mm_per_s2,
             rapid_mm_per_s: params.rapid_mm_per_min / 60.0,
+            checked_s: f64::NEG_INFINITY,
         };
         FeedAxisModel {
             planner,

@@ -720,6 +720,56 @@ mod tests {
         );
     }
 
+    /// The recording rate samples the machine; it must not change what the machine does. A
+    /// 1 Hz recording of a cycle that is a whole number of seconds long would see the same
+    /// instant of every cycle, and the current it samples would misstate the copper heat.
+    #[test]
+    fn a_slow_recording_samples_the_same_motion_and_heat_as_a_fast_one() {
+        let rate = |rate_hz: f64| {
+            let mut config = TwinConfig::new(ScenarioKind::Production, Some(1.0), 5);
+            config.rate_hz = rate_hz;
+            config.machine.measurement.noise_scale = 0.0;
+            run(config)
+        };
+        let (slow, fast) = (rate(1.0), rate(20.0));
+        let (slow_position, fast_position) = (
+            slow.column("X.position_mm").unwrap(),
+            fast.column("X.position_mm").unwrap(),
+        );
+        let mut gaps: Vec<f64> = slow_position
+            .iter()
+            .zip(fast_position.iter().step_by(20))
+            .map(|(a, b)| (a - b).abs())
+            .collect();
+        gaps.sort_by(f64::total_cmp);
+        let median_gap = gaps[gaps.len() / 2];
+        assert!(median_gap < 0.5, "median position gap {median_gap} mm");
+        // Mean I² (the copper heat) over each 10-minute window: the 1 Hz samples against the
+        // 20 Hz record's average.
+        let squared = |r: &Recording| -> Vec<f64> {
+            r.column("X.current_A")
+                .unwrap()
+                .iter()
+                .map(|i| i * i)
+                .collect()
+        };
+        let (slow_heat, fast_heat) = (squared(&slow), squared(&fast));
+        for (window, (s, f)) in slow_heat[..3600]
+            .chunks(600)
+            .zip(fast_heat[..72_000].chunks(12_000))
+            .enumerate()
+        {
+            let (s, f) = (
+                s.iter().sum::<f64>() / s.len() as f64,
+                f.iter().sum::<f64>() / f.len() as f64,
+            );
+            assert!(
+                (s / f - 1.0).abs() < 0.05,
+                "window {window}: 1 Hz mean I² {s:.3} A², 20 Hz {f:.3} A²"
+            );
+        }
+    }
+
     #[test]
     fn a_production_day_grows_the_spindle_by_the_papers_tens_of_micrometres() {
         let rec = run(TwinConfig::new(ScenarioKind::Production, Some(8.0), 3));
