@@ -27,14 +27,15 @@ for truth in 5 10 20 30 45 60; do
         seed=$((seed + 1))
         $S simulate --scenario backlash-test --set "x_axis.backlash_um=$truth" --noise "$noise" \
             --seed "$seed" -o "$out/lash.csv" 2> /dev/null
-        found=$($S backlash --recording "$out/lash.csv" --axis X | sed -nE '1s/.*backlash: ([0-9.]+) µm.*/\1/p')
+        $S backlash --recording "$out/lash.csv" --axis X --json "$out/lash.json" > /dev/null
+        found=$(python3 -c "import json, sys; print('%.3f' % json.load(open(sys.argv[1]))['backlash_um'])" "$out/lash.json")
         printf '%s\t%s\t%s\n' "$truth" "$noise" "$found" | tee -a "$out/backlash.tsv"
     done
 done
 awk -F'\t' '{ n++; t[n]=$1; f[n]=$3; s+=$1 } END {
     m = s / n; for (i = 1; i <= n; i++) { sse += (t[i]-f[i])^2; sst += (t[i]-m)^2;
     e = t[i]-f[i]; if (e < 0) e = -e; if (e > worst) worst = e }
-    printf "backlash R² %.4f, RMSE %.2f µm, worst error %.2f µm over %d runs\n", 1 - sse/sst, sqrt(sse/n), worst, n }' "$out/backlash.tsv"
+    printf "backlash R² %.5f, RMSE %.3f µm, worst error %.3f µm over %d runs\n", 1 - sse/sst, sqrt(sse/n), worst, n }' "$out/backlash.tsv"
 
 echo
 echo "motor abnormality: run, injected change, axis, state, excess friction % ± standard error"
