@@ -295,7 +295,9 @@ fn servo_lag_samples(command: &[f64], position: &[f64]) -> f64 {
 }
 
 /// `trajectory` delayed by `lag` samples at sample `i`, linearly interpolated (held at its
-/// first value before the start).
+/// first value before the start). In samples, not seconds like `discrepancy::series::shifted`:
+/// the lag is fitted in samples, and a live recording's time stamps are not an even grid (a lag
+/// found in samples and applied in seconds put the HMI warm-up test's backlash at 8.3 µm).
 fn delayed(trajectory: &[f64], i: usize, lag: f64) -> f64 {
     let at = i as f64 - lag;
     if at <= 0.0 {
