@@ -24,11 +24,13 @@ use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 
 use super::abnormality;
 use super::models::{
-    AbnormalityModel, AxisModels, Calibration, ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES,
-    LinearModel,
+    AMBIENT_LAG_FEATURES, AbnormalityModel, AxisModels, Calibration, ElongationModel, HeatModel,
+    IDEAL_TORQUE_FEATURES, LinearModel,
 };
 use super::pipeline::EstimatorPipeline;
-use super::streaming::{HeatAccumulator, StraightnessInputs, TorqueSplitEstimator};
+use super::streaming::{
+    HeatAccumulator, HeatInputs, RoomLags, StraightnessInputs, TorqueSplitEstimator, heat_inputs,
+};
 
 /// Candidate heat-accumulation time constants, s.
 const HEAT_TAUS_S: &[f64] = &[300.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
@@ -322,14 +324,12 @@ pub fn calibrate(
             if !database.iter().all(|r| r.try_column(&target).is_some()) {
                 continue;
             }
-            let lead_mm = axis_profile.screw.as_ref().map_or(1.0, |s| s.lead_mm);
             let (model, model_report) = fit_heat_model(
                 HeatFit {
                     axis,
                     label,
                     component,
                     split: &split,
-                    lead_mm,
                     target: &target,
                     has_ambient,
                 },
@@ -637,6 +637,28 @@ fn with_room_variant(
     Ok(candidates)
 }
 
+/// The candidates of [`with_room_variant`] and, when the room temperature is recorded,
+/// `[base + ambient + the room through each lag of AMBIENT_LAG_TAUS_S]`: for the parts bolted
+/// to the bed, which follows the room slowly.
+fn with_room_and_lag_variants(
+    base: Vec<(String, Vec<f64>)>,
+    recording: &Recording,
+    has_ambient: bool,
+) -> Result<Vec<Columns>, CalibrationError> {
+    let mut candidates = with_room_variant(base, recording, has_ambient)?;
+    if has_ambient && let Some(with_room) = candidates.last() {
+        let mut with_lags = with_room.clone();
+        for (name, column) in AMBIENT_LAG_FEATURES
+            .iter()
+            .zip(ambient_lag_columns(recording)?)
+        {
+            with_lags.push((name.to_string(), column));
+        }
+        candidates.push(with_lags);
+    }
+    Ok(candidates)
+}
+
 /// Concatenates candidate `c` of every recording, column by column.
 fn stack(per_recording: &[Vec<Columns>], c: usize) -> Columns {
     let mut columns: Vec<(String, Vec<f64>)> = per_recording[0][c]
@@ -790,44 +812,50 @@ fn fit_torque_ratios(
     Ok(Some((nb.model, bf.model, vec![nb.report, bf.report])))
 }
 
-/// The drag-heat and load-heat input series of a component (see
+/// The heat input series of a component (see
 /// [`super::streaming::ComponentThermalEstimator`]), from the estimated split torque and the
-/// encoder travel speed, exactly as the streaming estimator computes them.
+/// sampled speed, exactly as the streaming estimator computes them.
 fn component_heat_inputs(
     split: &TorqueSplitEstimator,
     component: Component,
     recording: &Recording,
     axis: AxisId,
-    lead_mm: f64,
     purpose: &str,
-) -> Result<(Vec<f64>, Vec<f64>), CalibrationError> {
+) -> Result<Vec<HeatInputs>, CalibrationError> {
     let torque = recording.column_for(&axis_column(axis, Quantity::Torque), purpose)?;
     let speed = recording.column_for(&axis_column(axis, Quantity::Speed), purpose)?;
-    let position = recording.try_column(&axis_column(axis, Quantity::Position));
+    Ok(torque
+        .iter()
+        .zip(speed)
+        .map(|(&torque, &speed)| {
+            let s = split.update(torque);
+            let tau = match component {
+                Component::FrontBearing => s.front_bearing_Nm,
+                Component::BackBearing => s.back_bearing_Nm,
+                Component::Nut => s.nut_Nm,
+            };
+            heat_inputs(tau, speed)
+        })
+        .collect())
+}
+
+/// The room through the lags of [`AMBIENT_LAG_TAUS_S`] over a recording, exactly as the
+/// pipeline's [`RoomLags`] follows it: one column per lag.
+fn ambient_lag_columns(recording: &Recording) -> Result<[Vec<f64>; 3], CalibrationError> {
+    let ambient = recording.column(AMBIENT)?;
     let time = recording.time();
-    let mut travel = super::pipeline::TravelSpeed::new(lead_mm);
-    let (mut drag, mut load) = (
-        Vec::with_capacity(time.len()),
-        Vec::with_capacity(time.len()),
-    );
-    for i in 0..time.len() {
-        let dt = if i == 0 {
-            0.0
-        } else {
-            (time[i] - time[i - 1]).max(0.0)
-        };
-        let n = travel.update(position.map(|p| p[i]), speed[i], dt);
-        let s = split.update(torque[i]);
-        let tau = match component {
-            Component::FrontBearing => s.front_bearing_Nm,
-            Component::BackBearing => s.back_bearing_Nm,
-            Component::Nut => s.nut_Nm,
-        };
-        let (d, l) = super::streaming::heat_inputs(tau, n);
-        drag.push(d);
-        load.push(l);
+    let mut lags = RoomLags::default();
+    let mut columns: [Vec<f64>; 3] = Default::default();
+    let mut previous = time.first().copied().unwrap_or(0.0);
+    for (&t, &a) in time.iter().zip(ambient) {
+        let dt = (t - previous).max(0.0);
+        previous = t;
+        let room = lags.update(a, dt);
+        for (column, value) in columns.iter_mut().zip(room.lags_C) {
+            column.push(value);
+        }
     }
-    Ok((drag, load))
+    Ok(columns)
 }
 
 /// Accumulates `input` with time constant `tau_s` over the recording's own time steps.
@@ -850,14 +878,14 @@ struct HeatFit<'a> {
     label: &'a str,
     component: Component,
     split: &'a TorqueSplitEstimator,
-    lead_mm: f64,
     target: &'a str,
     has_ambient: bool,
 }
 
-/// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator [+ c_room·T_room] + c_H·H(τ)
-/// [+ c_L·H_load(τ)], with τ and the optional terms chosen on the experiments (or by blocked
-/// cross-validation).
+/// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator + c_H·H(τ), optionally with the load
+/// heat c_L·H_load(τ) and the churning heat c_C·H_churning(τ), and with the room c_room·T_room
+/// and the room through the lags of `AMBIENT_LAG_TAUS_S`; τ and the optional terms are chosen
+/// on the experiments (or by blocked cross-validation).
 fn fit_heat_model(
     fit: HeatFit<'_>,
     database: &[Recording],
@@ -867,16 +895,7 @@ fn fit_heat_model(
     let inputs_of = |recordings: &[Recording]| {
         recordings
             .iter()
-            .map(|r| {
-                component_heat_inputs(
-                    fit.split,
-                    fit.component,
-                    r,
-                    fit.axis,
-                    fit.lead_mm,
-                    &estimate,
-                )
-            })
+            .map(|r| component_heat_inputs(fit.split, fit.component, r, fit.axis, &estimate))
             .collect::<Result<Vec<_>, _>>()
     };
     let db_inputs = inputs_of(database)?;
@@ -891,24 +910,32 @@ fn fit_heat_model(
             experiments,
             fit.target,
             &|side, index, r| {
-                let (drag, load) = match side {
+                let inputs = match side {
                     Side::Database => &db_inputs[index],
                     Side::Experiment => &experiment_inputs[index],
                 };
                 let stator = r.column_for(&stator_name, &estimate)?.to_vec();
-                let heat = accumulate(r.time(), drag, tau);
-                let load_heat = accumulate(r.time(), load, tau);
-                let drag_only = vec![
-                    ("stator".to_string(), stator.clone()),
-                    ("heat".to_string(), heat.clone()),
-                ];
-                let both = vec![
-                    ("stator".to_string(), stator),
-                    ("heat".to_string(), heat),
-                    ("load_heat".to_string(), load_heat),
-                ];
-                let mut candidates = with_room_variant(drag_only, r, fit.has_ambient)?;
-                candidates.extend(with_room_variant(both, r, fit.has_ambient)?);
+                let accumulated = |input: fn(&HeatInputs) -> f64| {
+                    let series: Vec<f64> = inputs.iter().map(input).collect();
+                    accumulate(r.time(), &series, tau)
+                };
+                let heat = ("heat".to_string(), accumulated(|i| i.drag));
+                let load_heat = ("load_heat".to_string(), accumulated(|i| i.load));
+                let churning_heat = ("churning_heat".to_string(), accumulated(|i| i.churning));
+                let stator = ("stator".to_string(), stator);
+                let mut candidates = Vec::new();
+                for base in [
+                    vec![stator.clone(), heat.clone()],
+                    vec![stator.clone(), heat.clone(), load_heat.clone()],
+                    vec![
+                        stator.clone(),
+                        heat.clone(),
+                        load_heat.clone(),
+                        churning_heat.clone(),
+                    ],
+                ] {
+                    candidates.extend(with_room_and_lag_variants(base, r, fit.has_ambient)?);
+                }
                 Ok(candidates)
             },
             Scoring::Absolute,
@@ -925,7 +952,7 @@ fn fit_heat_model(
     let rate = database[0].sample_rate_hz().unwrap_or(1.0);
     let mut report = fitted.report;
     report.equation = format!(
-        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag) and n·|τ| (load), τ = {tau} s",
+        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag), n·|τ| (load) and |n|^(5/3) (churning), τ = {tau} s",
         report.equation
     );
     Ok((
@@ -1121,8 +1148,8 @@ fn straightness_candidates(
         column("back_load_heat", &|i| i.back_load_heat),
     ];
     let mut candidates = with_room_variant(cubic, recording, has_ambient)?;
-    candidates.extend(with_room_variant(linear, recording, has_ambient)?);
-    candidates.extend(with_room_variant(states, recording, has_ambient)?);
+    candidates.extend(with_room_and_lag_variants(linear, recording, has_ambient)?);
+    candidates.extend(with_room_and_lag_variants(states, recording, has_ambient)?);
     Ok(candidates)
 }
 

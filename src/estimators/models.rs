@@ -17,14 +17,38 @@ pub const FLANGE_FEATURES: &[&str] = &["const", "stator", "ambient"];
 /// Torque ratios (Eq. 8): a cubic in the motor torque.
 pub const RATIO_FEATURES: &[&str] = &["const", "torque", "torque^2", "torque^3"];
 /// Bearing and nut temperature (Eqs. 9–12): constant, stator (the initial temperature),
-/// room, accumulated drag heat (∝ speed: the preload drag torque is nearly constant) and
-/// accumulated load heat (∝ speed × the component's estimated torque).
-pub const HEAT_FEATURES: &[&str] = &["const", "stator", "ambient", "heat", "load_heat"];
+/// room, accumulated drag heat (∝ speed: the preload drag torque is nearly constant),
+/// accumulated load heat (∝ speed × the component's estimated torque), accumulated churning
+/// heat (∝ |n|^(5/3): Palmgren's load-free bearing torque grows as (ν·n)^(2/3)), and the room
+/// through the slow lags of the machine's mass ([`AMBIENT_LAG_FEATURES`]). A fitted model
+/// uses a subset.
+pub const HEAT_FEATURES: &[&str] = &[
+    "const",
+    "stator",
+    "ambient",
+    "heat",
+    "load_heat",
+    "churning_heat",
+    "ambient_lag_30min",
+    "ambient_lag_90min",
+    "ambient_lag_270min",
+];
+/// The room temperature through first-order lags of these time constants: the bed, the base
+/// and the housings follow the room slowly, and a component bolted to them with it.
+pub const AMBIENT_LAG_TAUS_S: [f64; 3] = [1800.0, 5400.0, 16200.0];
+/// The feature names of [`AMBIENT_LAG_TAUS_S`], in the same order.
+pub const AMBIENT_LAG_FEATURES: [&str; 3] = [
+    "ambient_lag_30min",
+    "ambient_lag_90min",
+    "ambient_lag_270min",
+];
 /// Straightness per node (Eqs. 13–14): cubics in front-bearing, back-bearing and motor
-/// temperatures, and the room — or, as the alternative calibration may choose, linear in the
-/// thermal states those temperatures are built from (stator temperature and the bearings'
-/// accumulated drag and load heat), which keeps the temperature models' errors out of the
-/// bending estimate. A fitted model uses a subset.
+/// temperatures, and the room (now and through the lags of [`AMBIENT_LAG_TAUS_S`]: the bed's
+/// base, whose temperature the bending is measured against, follows the room slowly) — or, as
+/// the alternative calibration may choose, linear in the thermal states those temperatures are
+/// built from (stator temperature and the bearings' accumulated drag and load heat), which
+/// keeps the temperature models' errors out of the bending estimate. A fitted model uses a
+/// subset.
 pub const STRAIGHTNESS_FEATURES: &[&str] = &[
     "const",
     "front",
@@ -42,6 +66,9 @@ pub const STRAIGHTNESS_FEATURES: &[&str] = &[
     "front_load_heat",
     "back_heat",
     "back_load_heat",
+    "ambient_lag_30min",
+    "ambient_lag_90min",
+    "ambient_lag_270min",
 ];
 /// Spindle elongation (Eq. 15): ΔT of the stator since tool calibration, speed, load, plus
 /// heat accumulated over a fast, a middle and a slow time constant (Eq. 10's form applied to

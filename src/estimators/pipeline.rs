@@ -7,11 +7,11 @@ use crate::signal::channel::{AMBIENT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
-use super::models::AxisModels;
+use super::models::{AMBIENT_LAG_FEATURES, AxisModels};
 use super::streaming::{
-    ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, SpindleElongationEstimator,
-    StraightnessEstimator, StraightnessInputs, TorqueSplit, TorqueSplitEstimator,
-    minimum_zone_straightness,
+    ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, RoomLags,
+    SpindleElongationEstimator, StraightnessEstimator, StraightnessInputs, TorqueSplit,
+    TorqueSplitEstimator, minimum_zone_straightness,
 };
 
 /// Why a pipeline could not be built.
@@ -150,7 +150,6 @@ impl AxisChannels {
 struct FeedAxisPipeline {
     axis: AxisId,
     channels: AxisChannels,
-    travel: TravelSpeed,
     flange: Option<MotorFlangeEstimator>,
     split: Option<TorqueSplitEstimator>,
     front: Option<ComponentThermalEstimator>,
@@ -178,6 +177,8 @@ pub struct EstimatorPipeline {
     feed: Vec<FeedAxisPipeline>,
     spindles: Vec<SpindlePipeline>,
     ambient: Option<usize>,
+    /// The room through the lags the heat and straightness models may read.
+    room: RoomLags,
     cut_depth: Option<usize>,
     previous_time: Option<f64>,
     notes: Vec<String>,
@@ -259,11 +260,9 @@ impl EstimatorPipeline {
                                 .map_err(model_err(what))
                         }
                     };
-                    let lead_mm = axis_profile.screw.as_ref().map_or(1.0, |s| s.lead_mm);
                     feed.push(FeedAxisPipeline {
                         axis,
                         channels,
-                        travel: TravelSpeed::new(lead_mm),
                         flange: models
                             .motor_flange
                             .as_ref()
@@ -325,6 +324,7 @@ impl EstimatorPipeline {
             feed,
             spindles,
             ambient,
+            room: RoomLags::default(),
             cut_depth,
             previous_time: None,
             notes,
@@ -357,6 +357,7 @@ impl EstimatorPipeline {
         let dt = self.previous_time.map_or(0.0, |p| (t - p).max(0.0));
         self.previous_time = Some(t);
         let ambient = self.ambient.map_or(f64::NAN, |i| frame[i]);
+        let room = self.room.update(ambient, dt);
         let cutting = self.cut_depth.is_some_and(|i| frame[i] > 0.0);
         let sample = |c: &AxisChannels, stroke_fraction: f64| TorqueSample {
             time_s: t,
@@ -374,9 +375,7 @@ impl EstimatorPipeline {
                 let x = c.position.map_or(f64::NAN, |i| frame[i] / axis.stroke_mm);
                 axis.estimate.abnormality = abnormality.update(&sample(&c, x));
             }
-            let speed = axis
-                .travel
-                .update(c.position.map(|i| frame[i]), frame[c.speed], dt);
+            let speed = frame[c.speed];
             let e = &mut axis.estimate;
             if let Some(flange) = &axis.flange {
                 e.motor_flange_C = flange.update(stator, ambient);
@@ -385,14 +384,14 @@ impl EstimatorPipeline {
                 e.split = split.update(torque);
                 if let Some(front) = &mut axis.front {
                     e.front_bearing_C =
-                        front.update(e.split.front_bearing_Nm, speed, stator, ambient, dt);
+                        front.update(e.split.front_bearing_Nm, speed, stator, &room, dt);
                 }
                 if let Some(back) = &mut axis.back {
                     e.back_bearing_C =
-                        back.update(e.split.back_bearing_Nm, speed, stator, ambient, dt);
+                        back.update(e.split.back_bearing_Nm, speed, stator, &room, dt);
                 }
                 if let Some(nut) = &mut axis.nut {
-                    e.nut_C = nut.update(e.split.nut_Nm, speed, stator, ambient, dt);
+                    e.nut_C = nut.update(e.split.nut_Nm, speed, stator, &room, dt);
                 }
             }
             {
@@ -407,6 +406,7 @@ impl EstimatorPipeline {
                     back_C: e.back_bearing_C,
                     motor_C: e.motor_flange_C,
                     ambient_C: ambient,
+                    ambient_lags_C: room.lags_C,
                     stator_C: stator,
                     front_heat,
                     front_load_heat,
@@ -627,36 +627,6 @@ fn abnormality_output(axis: AxisId) -> EstimateOutput {
     }
 }
 
-/// The speed an axis travelled at over the last sample interval, from its encoder position;
-/// the sampled speed when there is no position channel or no interval yet.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct TravelSpeed {
-    lead_mm: f64,
-    previous_mm: Option<f64>,
-}
-
-impl TravelSpeed {
-    pub(crate) fn new(lead_mm: f64) -> Self {
-        TravelSpeed {
-            lead_mm,
-            previous_mm: None,
-        }
-    }
-
-    /// rpm over the interval `dt` ending at this frame.
-    #[inline]
-    pub(crate) fn update(&mut self, position_mm: Option<f64>, sampled_rpm: f64, dt: f64) -> f64 {
-        let Some(x) = position_mm else {
-            return sampled_rpm;
-        };
-        let previous = self.previous_mm.replace(x);
-        match previous {
-            Some(p) if dt > 0.0 => (x - p).abs() / self.lead_mm / dt * 60.0,
-            _ => sampled_rpm,
-        }
-    }
-}
-
 /// One estimate the pipeline writes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EstimateOutput {
@@ -669,7 +639,11 @@ pub struct EstimateOutput {
 }
 
 fn uses_ambient(models: &AxisModels) -> bool {
-    let uses = |m: &super::models::LinearModel| m.terms.iter().any(|t| t == "ambient");
+    let uses = |m: &super::models::LinearModel| {
+        m.terms
+            .iter()
+            .any(|t| t == "ambient" || AMBIENT_LAG_FEATURES.contains(&t.as_str()))
+    };
     models.motor_flange.as_ref().is_some_and(uses)
         || [
             &models.front_bearing_temp,

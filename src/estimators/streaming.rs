@@ -6,8 +6,8 @@
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use super::models::{
-    BoundModel, ELONGATION_FEATURES, ElongationModel, FLANGE_FEATURES, HEAT_FEATURES, HeatModel,
-    LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
+    AMBIENT_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel, FLANGE_FEATURES,
+    HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
 };
 
 /// rpm → rad/s.
@@ -58,6 +58,77 @@ impl HeatAccumulator {
     /// The accumulated heat.
     pub fn value(&self) -> f64 {
         self.value
+    }
+
+    /// Sets the accumulated value, as if the input had been `value` for a long time.
+    pub fn settle_at(&mut self, value: f64) {
+        self.value = value;
+    }
+}
+
+/// The room temperature now and through the lags of [`AMBIENT_LAG_TAUS_S`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Room {
+    /// Room temperature, °C (NaN when the recording has none).
+    pub ambient_C: f64,
+    /// The room through each lag, °C, in the order of [`AMBIENT_LAG_TAUS_S`].
+    pub lags_C: [f64; 3],
+}
+
+impl Default for Room {
+    fn default() -> Self {
+        Room {
+            ambient_C: f64::NAN,
+            lags_C: [f64::NAN; 3],
+        }
+    }
+}
+
+/// Follows the room through the slow lags of the machine's mass ([`AMBIENT_LAG_TAUS_S`]).
+///
+/// The lags start settled at the first room reading: a machine that has stood in its room is
+/// at the room's temperature, so starting them at zero would invent a warm-up of the bed. A
+/// missing room reading (NaN) leaves them where they were rather than poisoning them.
+#[derive(Debug, Clone)]
+pub struct RoomLags {
+    lags: [HeatAccumulator; 3],
+    started: bool,
+}
+
+impl Default for RoomLags {
+    fn default() -> Self {
+        RoomLags {
+            lags: AMBIENT_LAG_TAUS_S.map(HeatAccumulator::new),
+            started: false,
+        }
+    }
+}
+
+impl RoomLags {
+    /// Takes one room reading over `dt` seconds.
+    #[inline]
+    pub fn update(&mut self, ambient_C: f64, dt: f64) -> Room {
+        if !ambient_C.is_finite() {
+            let lags_C = if self.started {
+                self.lags.each_ref().map(HeatAccumulator::value)
+            } else {
+                [f64::NAN; 3]
+            };
+            return Room {
+                ambient_C: f64::NAN,
+                lags_C,
+            };
+        }
+        if !self.started {
+            self.started = true;
+            for lag in &mut self.lags {
+                lag.settle_at(ambient_C);
+            }
+        }
+        Room {
+            ambient_C,
+            lags_C: self.lags.each_mut().map(|lag| lag.update(ambient_C, dt)),
+        }
     }
 }
 
@@ -133,44 +204,53 @@ impl TorqueSplitEstimator {
 
 /// Component temperature from accumulated friction heat (Eqs. 9–12).
 ///
-/// Eq. 11's heat H′ = C_HB·τ·n has two parts here. The preload drag torque of a bearing or
-/// nut is nearly constant, so its heat is ∝ n; the load-dependent part is ∝ n·|τ|. Both are
-/// accumulated with the fitted τ (Eq. 10). `n` is the axis's *travel* speed over the last
-/// sample interval (encoder distance / time) rather than the sampled speed: a 1 Hz sample of a
-/// 0.3 s rapid move usually sees the axis standing, but the encoder saw it move.
+/// Eq. 11's heat H′ = C_HB·τ·n has three parts here. The preload drag torque of a bearing or
+/// nut is nearly constant, so its heat is ∝ n; the load-dependent part is ∝ n·|τ|; and a
+/// bearing's load-free (churning) torque grows as (ν·n)^(2/3) (Palmgren), so its heat as
+/// |n|^(5/3). Each is accumulated with the fitted τ (Eq. 10). `n` is the sampled speed, taken
+/// at the same instant as the torque: at 1 Hz one sample of a short rapid move is noisy, but
+/// a sampler that is not locked to the program's cycle sees each phase of it equally often,
+/// and the accumulation averages it out. (The encoder's travel over the interval, used
+/// before, is blind to a move and its return within one interval and makes |n|^(5/3) of an
+/// average speed, which understates a rapid's churning.)
 #[derive(Debug, Clone)]
 pub struct ComponentThermalEstimator {
     heat: HeatAccumulator,
     load_heat: HeatAccumulator,
+    churning_heat: HeatAccumulator,
     model: BoundModel,
 }
 
 impl ComponentThermalEstimator {
-    /// Binds a fitted heat model. The accumulator uses the model's τ, which is what rescales
+    /// Binds a fitted heat model. The accumulators use the model's τ, which is what rescales
     /// C_BH to the live sample rate.
     pub fn new(model: &HeatModel) -> Result<Self, String> {
         Ok(ComponentThermalEstimator {
             heat: HeatAccumulator::new(model.tau_s),
             load_heat: HeatAccumulator::new(model.tau_s),
+            churning_heat: HeatAccumulator::new(model.tau_s),
             model: BoundModel::bind(&model.temperature, HEAT_FEATURES)?,
         })
     }
 
-    /// °C after one sample, from the component's torque, the travel speed over the interval,
-    /// and the stator and room temperatures.
+    /// °C after one sample, from the component's torque, the sampled speed, the stator
+    /// temperature and the room.
     #[inline]
     pub fn update(
         &mut self,
         torque_Nm: f64,
-        travel_rpm: f64,
+        speed_rpm: f64,
         stator_C: f64,
-        ambient_C: f64,
+        room: &Room,
         dt: f64,
     ) -> f64 {
-        let (drag, load) = heat_inputs(torque_Nm, travel_rpm);
-        let h = self.heat.update(drag, dt);
-        let l = self.load_heat.update(load, dt);
-        self.model.eval(&[1.0, stator_C, ambient_C, h, l])
+        let inputs = heat_inputs(torque_Nm, speed_rpm);
+        let h = self.heat.update(inputs.drag, dt);
+        let l = self.load_heat.update(inputs.load, dt);
+        let c = self.churning_heat.update(inputs.churning, dt);
+        let [lag1, lag2, lag3] = room.lags_C;
+        self.model
+            .eval(&[1.0, stator_C, room.ambient_C, h, l, c, lag1, lag2, lag3])
     }
 
     /// The accumulated drag heat.
@@ -184,15 +264,26 @@ impl ComponentThermalEstimator {
     }
 }
 
-/// The two heat inputs of a component: drag heat ∝ travel speed (krpm) and load heat ∝ travel
-/// speed × |torque| (kW-like units: N·m · rad/s / 1000).
+/// The heat inputs of a component in one sample (see [`ComponentThermalEstimator`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeatInputs {
+    /// Drag heat ∝ speed, krpm.
+    pub drag: f64,
+    /// Load heat ∝ speed × |torque|, kW-like units (N·m · rad/s / 1000).
+    pub load: f64,
+    /// Churning heat ∝ |speed|^(5/3), krpm^(5/3).
+    pub churning: f64,
+}
+
+/// The heat inputs of a component from its torque and the sampled speed.
 #[inline]
-pub fn heat_inputs(torque_Nm: f64, travel_rpm: f64) -> (f64, f64) {
-    let krpm = travel_rpm.abs() / 1000.0;
-    (
-        krpm,
-        (torque_Nm * travel_rpm * RPM_TO_RAD_PER_S).abs() / 1000.0,
-    )
+pub fn heat_inputs(torque_Nm: f64, speed_rpm: f64) -> HeatInputs {
+    let krpm = speed_rpm.abs() / 1000.0;
+    HeatInputs {
+        drag: krpm,
+        load: (torque_Nm * speed_rpm * RPM_TO_RAD_PER_S).abs() / 1000.0,
+        churning: krpm * krpm.cbrt().powi(2),
+    }
 }
 
 /// What the straightness models read: the estimated temperatures and the thermal states
@@ -207,6 +298,8 @@ pub struct StraightnessInputs {
     pub motor_C: f64,
     /// Room temperature, °C.
     pub ambient_C: f64,
+    /// The room through the lags of [`AMBIENT_LAG_TAUS_S`], °C.
+    pub ambient_lags_C: [f64; 3],
     /// Stator temperature, °C.
     pub stator_C: f64,
     /// Front bearing's accumulated drag heat.
@@ -279,6 +372,9 @@ impl StraightnessEstimator {
             i.front_load_heat,
             i.back_heat,
             i.back_load_heat,
+            i.ambient_lags_C[0],
+            i.ambient_lags_C[1],
+            i.ambient_lags_C[2],
         ];
         for (slot, model) in out.iter_mut().zip(&self.models) {
             *slot = model.eval(&features);
@@ -435,6 +531,41 @@ mod tests {
             - residuals.iter().cloned().fold(f64::INFINITY, f64::min);
         let zone = minimum_zone_straightness(&x, &d);
         assert!(zone >= 0.0 && zone <= end_point + 1e-12);
+    }
+
+    /// A machine that has stood in its room is at the room's temperature: the lags start there
+    /// rather than at zero, follow a step with their own time constants, and hold through a
+    /// missing reading instead of taking it in.
+    #[test]
+    fn room_lags_start_settled_follow_a_step_and_hold_through_a_gap() {
+        let mut room = RoomLags::default();
+        let first = room.update(20.0, 0.0);
+        assert_eq!(first.lags_C, [20.0; 3]);
+        let mut last = first;
+        for _ in 0..1800 {
+            last = room.update(22.0, 1.0);
+        }
+        for (lag, tau) in last.lags_C.iter().zip(AMBIENT_LAG_TAUS_S) {
+            let expected = 22.0 - 2.0 * (-1800.0 / tau).exp();
+            assert!((lag - expected).abs() < 1e-9, "{lag} against {expected}");
+        }
+        let gap = room.update(f64::NAN, 1.0);
+        assert!(gap.ambient_C.is_nan());
+        assert_eq!(gap.lags_C, last.lags_C);
+        assert!(room.update(22.0, 1.0).lags_C.iter().all(|v| v.is_finite()));
+        assert!(RoomLags::default().update(f64::NAN, 1.0).lags_C[0].is_nan());
+    }
+
+    /// Palmgren's load-free torque ∝ (ν·n)^(2/3), so its heat ∝ |n|^(5/3): doubling the speed
+    /// multiplies it by 2^(5/3), whichever the direction.
+    #[test]
+    fn churning_heat_grows_as_the_five_thirds_power_of_speed() {
+        let slow = heat_inputs(0.5, 1000.0);
+        let fast = heat_inputs(0.5, -2000.0);
+        assert!((slow.churning - 1.0).abs() < 1e-12);
+        assert!((fast.churning / slow.churning - 2f64.powf(5.0 / 3.0)).abs() < 1e-12);
+        assert!((fast.drag / slow.drag - 2.0).abs() < 1e-12);
+        assert!((fast.load / slow.load - 2.0).abs() < 1e-12);
     }
 
     #[test]
