@@ -29,7 +29,8 @@ use super::models::{
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
-    HeatAccumulator, HeatInputs, RoomLags, StraightnessInputs, TorqueSplitEstimator, heat_inputs,
+    HeatAccumulator, HeatInputs, RoomLags, SpeedHeat, StraightnessInputs, TorqueSplitEstimator,
+    heat_inputs,
 };
 
 /// Candidate heat-accumulation time constants, s.
@@ -834,7 +835,7 @@ fn component_heat_inputs(
                 Component::BackBearing => s.back_bearing_Nm,
                 Component::Nut => s.nut_Nm,
             };
-            heat_inputs(tau, speed)
+            heat_inputs(tau, &SpeedHeat::of(speed))
         })
         .collect())
 }

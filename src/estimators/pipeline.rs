@@ -9,7 +9,7 @@ use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
 use super::models::{AMBIENT_LAG_FEATURES, AxisModels};
 use super::streaming::{
-    ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, RoomLags,
+    ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, RoomLags, SpeedHeat,
     SpindleElongationEstimator, StraightnessEstimator, StraightnessInputs, TorqueSplit,
     TorqueSplitEstimator, minimum_zone_straightness,
 };
@@ -375,7 +375,7 @@ impl EstimatorPipeline {
                 let x = c.position.map_or(f64::NAN, |i| frame[i] / axis.stroke_mm);
                 axis.estimate.abnormality = abnormality.update(&sample(&c, x));
             }
-            let speed = frame[c.speed];
+            let speed = SpeedHeat::of(frame[c.speed]);
             let e = &mut axis.estimate;
             if let Some(flange) = &axis.flange {
                 e.motor_flange_C = flange.update(stator, ambient);
@@ -384,14 +384,14 @@ impl EstimatorPipeline {
                 e.split = split.update(torque);
                 if let Some(front) = &mut axis.front {
                     e.front_bearing_C =
-                        front.update(e.split.front_bearing_Nm, speed, stator, &room, dt);
+                        front.update(e.split.front_bearing_Nm, &speed, stator, &room, dt);
                 }
                 if let Some(back) = &mut axis.back {
                     e.back_bearing_C =
-                        back.update(e.split.back_bearing_Nm, speed, stator, &room, dt);
+                        back.update(e.split.back_bearing_Nm, &speed, stator, &room, dt);
                 }
                 if let Some(nut) = &mut axis.nut {
-                    e.nut_C = nut.update(e.split.nut_Nm, speed, stator, &room, dt);
+                    e.nut_C = nut.update(e.split.nut_Nm, &speed, stator, &room, dt);
                 }
             }
             {

@@ -233,18 +233,18 @@ impl ComponentThermalEstimator {
         })
     }
 
-    /// °C after one sample, from the component's torque, the sampled speed, the stator
-    /// temperature and the room.
+    /// °C after one sample, from the component's torque, the axis's sampled speed (as
+    /// [`SpeedHeat`], computed once per axis and frame), the stator temperature and the room.
     #[inline]
     pub fn update(
         &mut self,
         torque_Nm: f64,
-        speed_rpm: f64,
+        speed: &SpeedHeat,
         stator_C: f64,
         room: &Room,
         dt: f64,
     ) -> f64 {
-        let inputs = heat_inputs(torque_Nm, speed_rpm);
+        let inputs = heat_inputs(torque_Nm, speed);
         let h = self.heat.update(inputs.drag, dt);
         let l = self.load_heat.update(inputs.load, dt);
         let c = self.churning_heat.update(inputs.churning, dt);
@@ -275,14 +275,38 @@ pub struct HeatInputs {
     pub churning: f64,
 }
 
-/// The heat inputs of a component from its torque and the sampled speed.
+/// The speed-dependent part of the heat inputs, shared by every component of an axis (the
+/// churning term's cube root is the costliest operation of a frame, so it is taken once).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedHeat {
+    /// The sampled speed, rpm.
+    pub speed_rpm: f64,
+    /// |n|, krpm.
+    pub krpm: f64,
+    /// |n|^(5/3), krpm^(5/3).
+    pub churning: f64,
+}
+
+impl SpeedHeat {
+    /// The speed terms of one sample.
+    #[inline]
+    pub fn of(speed_rpm: f64) -> Self {
+        let krpm = speed_rpm.abs() / 1000.0;
+        SpeedHeat {
+            speed_rpm,
+            krpm,
+            churning: krpm * krpm.cbrt().powi(2),
+        }
+    }
+}
+
+/// The heat inputs of a component from its torque and the axis's sampled speed.
 #[inline]
-pub fn heat_inputs(torque_Nm: f64, speed_rpm: f64) -> HeatInputs {
-    let krpm = speed_rpm.abs() / 1000.0;
+pub fn heat_inputs(torque_Nm: f64, speed: &SpeedHeat) -> HeatInputs {
     HeatInputs {
-        drag: krpm,
-        load: (torque_Nm * speed_rpm * RPM_TO_RAD_PER_S).abs() / 1000.0,
-        churning: krpm * krpm.cbrt().powi(2),
+        drag: speed.krpm,
+        load: (torque_Nm * speed.speed_rpm * RPM_TO_RAD_PER_S).abs() / 1000.0,
+        churning: speed.churning,
     }
 }
 
@@ -560,8 +584,8 @@ mod tests {
     /// multiplies it by 2^(5/3), whichever the direction.
     #[test]
     fn churning_heat_grows_as_the_five_thirds_power_of_speed() {
-        let slow = heat_inputs(0.5, 1000.0);
-        let fast = heat_inputs(0.5, -2000.0);
+        let slow = heat_inputs(0.5, &SpeedHeat::of(1000.0));
+        let fast = heat_inputs(0.5, &SpeedHeat::of(-2000.0));
         assert!((slow.churning - 1.0).abs() < 1e-12);
         assert!((fast.churning / slow.churning - 2f64.powf(5.0 / 3.0)).abs() < 1e-12);
         assert!((fast.drag / slow.drag - 2.0).abs() < 1e-12);
