@@ -129,8 +129,9 @@ pub struct LinearModel {
     pub rmse: f64,
 }
 
-/// A heat-accumulation model (Eqs. 10–12): H ← H(1 − C_BH) + C_BH·H′ with H′ = |τ·n|, then a
-/// linear model over `HEAT_FEATURES`.
+/// A heat-accumulation model (Eqs. 10–12): H ← H(1 − C_BH) + C_BH·H′ for each heat input H′
+/// (drag ∝ |n|, load ∝ |τ·n|, churning ∝ |n|^(5/3), all with the one τ), then a linear model
+/// over `HEAT_FEATURES`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HeatModel {
@@ -342,6 +343,16 @@ impl BoundModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The estimators pass the room lags as the last three features of the heat and
+    /// straightness vectors, in the order of `AMBIENT_LAG_TAUS_S`; the names there must be the
+    /// same, or a fitted lag would bind to the wrong value.
+    #[test]
+    fn room_lag_features_end_the_heat_and_straightness_features_in_order() {
+        for features in [HEAT_FEATURES, STRAIGHTNESS_FEATURES] {
+            assert_eq!(features[features.len() - 3..], AMBIENT_LAG_FEATURES);
+        }
+    }
 
     fn model(terms: &[&str], coefficients: &[f64]) -> LinearModel {
         LinearModel {

@@ -75,15 +75,6 @@ pub struct Room {
     pub lags_C: [f64; 3],
 }
 
-impl Default for Room {
-    fn default() -> Self {
-        Room {
-            ambient_C: f64::NAN,
-            lags_C: [f64::NAN; 3],
-        }
-    }
-}
-
 /// Follows the room through the slow lags of the machine's mass ([`AMBIENT_LAG_TAUS_S`]).
 ///
 /// The lags start settled at the first room reading: a machine that has stood in its room is
