@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
-use servosight::fit::{Design, FitReport, ols, parse_terms, sensitivity};
+use servosight::fit::{
+    Design, FitError, FitReport, OlsOptions, ols, parse_terms, sensitivity, wls,
+};
 use servosight::signal::read_recording;
 
 const RELATIVE: f64 = 1e-6;
@@ -120,6 +122,59 @@ fn fit_parity_tiny_set() {
 #[test]
 fn fit_parity_dynamic_features_on_irregular_time_steps() {
     check_parity("dynamic_features");
+}
+
+/// The weighted fixture's design and its `weight` column.
+fn weighted_fixture() -> (Value, Design, Vec<f64>) {
+    let expected = expected("weighted");
+    let recording = read_recording(&fixture_dir().join("weighted.csv")).unwrap();
+    let terms = parse_terms(expected["terms"].as_str().unwrap()).unwrap();
+    let design =
+        Design::from_recording(&recording, expected["target"].as_str().unwrap(), &terms).unwrap();
+    let weights = recording.column("weight").unwrap().to_vec();
+    (expected, design, weights)
+}
+
+#[test]
+fn fit_parity_weighted_least_squares_against_statsmodels_wls() {
+    let (expected, design, weights) = weighted_fixture();
+    let fit = wls(&design, &weights, &OlsOptions::default()).unwrap();
+    let actual = serde_json::to_value(FitReport::new(&fit, Vec::new())).unwrap();
+    let worst =
+        compare(&expected, &actual, "weighted").unwrap_or_else(|mismatch| panic!("{mismatch}"));
+    eprintln!("weighted: worst relative error against statsmodels WLS {worst:.2e}");
+    // The weights matter here: the unweighted fit is measurably different.
+    let unweighted = ols(&design).unwrap();
+    let speed = |f: &servosight::fit::OlsFit| f.coefficient("S.speed_rpm").unwrap().estimate;
+    assert!((speed(&fit) - speed(&unweighted)).abs() > 1e-4);
+}
+
+#[test]
+fn weighted_fit_with_equal_weights_is_the_ordinary_fit() {
+    let (_, design, weights) = weighted_fixture();
+    let equal = vec![2.5; weights.len()];
+    let weighted = wls(&design, &equal, &OlsOptions::default()).unwrap();
+    let ordinary = ols(&design).unwrap();
+    for (w, o) in weighted.coefficients.iter().zip(&ordinary.coefficients) {
+        assert!((w.estimate - o.estimate).abs() <= 1e-10 * o.estimate.abs().max(1.0));
+        assert!((w.std_error - o.std_error).abs() <= 1e-9 * o.std_error);
+    }
+    assert!((weighted.r2 - ordinary.r2).abs() < 1e-12);
+}
+
+#[test]
+fn weighted_fit_refuses_a_bad_weight_and_names_it() {
+    let (_, design, mut weights) = weighted_fixture();
+    weights[7] = f64::NAN;
+    let error = wls(&design, &weights, &OlsOptions::default()).unwrap_err();
+    assert!(
+        matches!(error, FitError::InvalidParameter { name: "weight", .. }),
+        "{error}"
+    );
+    weights[7] = 0.0;
+    assert!(wls(&design, &weights, &OlsOptions::default()).is_err());
+    let error = wls(&design, &weights[..10], &OlsOptions::default()).unwrap_err();
+    assert!(matches!(error, FitError::Dimension { .. }), "{error}");
 }
 
 #[test]

@@ -210,6 +210,26 @@ impl Design {
         }
     }
 
+    /// The whitened design of a weighted fit: every row of `X` and `y` multiplied by √wᵢ.
+    /// `weights` must have one entry per row (checked by the caller, [`super::wls`]).
+    pub(crate) fn with_row_scales(&self, weights: &[f64]) -> Design {
+        let scales: Vec<f64> = weights.iter().map(|w| w.sqrt()).collect();
+        let mut x = self.x.clone();
+        for j in 0..self.n_coefficients() {
+            for (v, s) in x.col_as_slice_mut(j).iter_mut().zip(&scales) {
+                *v *= s;
+            }
+        }
+        Design {
+            target: self.target.clone(),
+            terms: self.terms.clone(),
+            x,
+            y: self.y.iter().zip(&scales).map(|(y, s)| y * s).collect(),
+            time_s: self.time_s.clone(),
+            rows_dropped: self.rows_dropped,
+        }
+    }
+
     /// The design restricted to the rows for which `keep(row)` is true (order kept).
     pub fn with_rows(&self, keep: impl Fn(usize) -> bool) -> Design {
         let rows: Vec<usize> = (0..self.n_rows()).filter(|&i| keep(i)).collect();

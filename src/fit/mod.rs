@@ -40,7 +40,7 @@ pub mod terms;
 
 pub use design::Design;
 pub use error::{FitError, TermError};
-pub use ols::{Coefficient, OlsFit, OlsOptions, ols, ols_with};
+pub use ols::{Coefficient, OlsFit, OlsOptions, ols, ols_with, wls};
 pub use report::FitReport;
 pub use rls::RecursiveLeastSquares;
 pub use selection::{

@@ -175,6 +175,44 @@ pub fn ols(design: &Design) -> Result<OlsFit, FitError> {
 /// Errors, each naming the term: fewer rows than coefficients + 1, a constant term, two
 /// identical terms, a term that is a linear combination of earlier ones, a constant target.
 pub fn ols_with(design: &Design, options: &OlsOptions) -> Result<OlsFit, FitError> {
+    least_squares(design, None, options)
+}
+
+/// Fits `design` by weighted least squares: minimises Σ wᵢ (yᵢ − xᵢβ)², as statsmodels' `WLS`
+/// does, and reports its statistics: sums of squares are weighted (SST about the weighted mean),
+/// the log-likelihood gains ½ Σ ln wᵢ, and `fitted` and `residuals` are on the data's own scale.
+/// Weights are relative (scaling them all changes no estimate, standard error or p-value).
+///
+/// Used where two sources of rows deserve different trust, e.g. a large simulated database and
+/// a few real experiments that must count as much as the database does.
+///
+/// Errors: the errors of [`ols_with`], and a weight that is not finite and positive, or a
+/// weight count other than the row count.
+pub fn wls(design: &Design, weights: &[f64], options: &OlsOptions) -> Result<OlsFit, FitError> {
+    if weights.len() != design.n_rows() {
+        return Err(FitError::Dimension {
+            what: "regression weights",
+            expected: design.n_rows(),
+            found: weights.len(),
+        });
+    }
+    if let Some(&bad) = weights.iter().find(|w| !(w.is_finite() && **w > 0.0)) {
+        return Err(FitError::InvalidParameter {
+            name: "weight",
+            value: bad,
+            requirement: "every weight must be finite and positive",
+        });
+    }
+    least_squares(design, Some(weights), options)
+}
+
+/// OLS (`weights` None) or WLS: the weighted problem is solved as OLS on rows scaled by √wᵢ
+/// (the whitened design), and its statistics are stated on the weighted sums of squares.
+fn least_squares(
+    design: &Design,
+    weights: Option<&[f64]>,
+    options: &OlsOptions,
+) -> Result<OlsFit, FitError> {
     if !(options.confidence > 0.0 && options.confidence < 1.0) {
         return Err(FitError::InvalidParameter {
             name: "confidence",
@@ -193,9 +231,20 @@ pub fn ols_with(design: &Design, options: &OlsOptions) -> Result<OlsFit, FitErro
         });
     }
     check_constant_and_duplicate_terms(design)?;
+    let weight = |i: usize| weights.map_or(1.0, |w| w[i]);
     let y = design.y();
-    let y_mean = y.iter().sum::<f64>() / n as f64;
-    let ss_total: f64 = y.iter().map(|v| (v - y_mean) * (v - y_mean)).sum();
+    let weight_total: f64 = (0..n).map(weight).sum();
+    let y_mean = y
+        .iter()
+        .enumerate()
+        .map(|(i, v)| weight(i) * v)
+        .sum::<f64>()
+        / weight_total;
+    let ss_total: f64 = y
+        .iter()
+        .enumerate()
+        .map(|(i, v)| weight(i) * (v - y_mean) * (v - y_mean))
+        .sum();
     if ss_total == 0.0 {
         return Err(FitError::ConstantTarget {
             target: design.target().to_string(),
@@ -203,11 +252,18 @@ pub fn ols_with(design: &Design, options: &OlsOptions) -> Result<OlsFit, FitErro
         });
     }
 
-    let solution = solve_least_squares(design, options)?;
+    let solution = match weights {
+        None => solve_least_squares(design, options)?,
+        Some(w) => solve_least_squares(&design.with_row_scales(w), options)?,
+    };
     let estimates = solution.estimates;
     let fitted = linear_combination(design, &estimates);
     let residuals: Vec<f64> = y.iter().zip(&fitted).map(|(y, f)| y - f).collect();
-    let ss_error: f64 = residuals.iter().map(|r| r * r).sum();
+    let ss_error: f64 = residuals
+        .iter()
+        .enumerate()
+        .map(|(i, r)| weight(i) * r * r)
+        .sum();
 
     let nf = n as f64;
     let df_model = p - 1;
@@ -217,8 +273,10 @@ pub fn ols_with(design: &Design, options: &OlsOptions) -> Result<OlsFit, FitErro
     let mse_resid = ss_error / df_resid as f64;
     let f_statistic = mse_model / mse_resid;
     let r2 = 1.0 - ss_error / ss_total;
+    let log_weights: f64 = weights.map_or(0.0, |w| w.iter().map(|w| w.ln()).sum());
     let log_likelihood =
-        -nf / 2.0 * (2.0 * std::f64::consts::PI).ln() - nf / 2.0 * (ss_error / nf).ln() - nf / 2.0;
+        -nf / 2.0 * (2.0 * std::f64::consts::PI).ln() - nf / 2.0 * (ss_error / nf).ln() - nf / 2.0
+            + 0.5 * log_weights;
     let quantile = student_t_quantile(1.0 - (1.0 - options.confidence) / 2.0, df_resid as f64);
     let coefficients = design
         .terms()
