@@ -487,3 +487,58 @@ fn shipped_twin_profile_binds_to_twin_frames() {
     let x = pipeline.feed_axis(servosight::signal::AxisId::X).unwrap();
     assert!(x.nut_C.is_finite() && x.straightness_v_zone_um() >= 0.0);
 }
+
+/// The shipped elongation model reads the coolant and the spindle current: a recording without
+/// `coolant_on` is refused with the column and the model that needs it named, not estimated
+/// with a silent zero.
+#[test]
+fn estimate_names_the_coolant_column_the_elongation_model_needs() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = simulate(
+        dir.path(),
+        "r.csv",
+        &["--scenario", "production", "--hours", "0.05"],
+    );
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
+    let drop = header.split(',').position(|c| c == "coolant_on").unwrap();
+    let without: String = text
+        .lines()
+        .map(|line| {
+            if line.starts_with('#') {
+                return format!("{line}\n");
+            }
+            let cells: Vec<&str> = line
+                .split(',')
+                .enumerate()
+                .filter(|(i, _)| *i != drop)
+                .map(|(_, c)| c)
+                .collect();
+            format!("{}\n", cells.join(","))
+        })
+        .collect();
+    let stripped = dir.path().join("no-coolant.csv");
+    std::fs::write(&stripped, without).unwrap();
+    let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+    let ok = servosight(&[
+        "estimate",
+        "--profile",
+        arg(&profile),
+        "--recording",
+        arg(&rec),
+    ]);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+    let run = servosight(&[
+        "estimate",
+        "--profile",
+        arg(&profile),
+        "--recording",
+        arg(&stripped),
+    ]);
+    assert!(!run.status.success());
+    let message = stderr(&run);
+    assert!(
+        message.contains("coolant_on") && message.contains("elongation"),
+        "{message}"
+    );
+}

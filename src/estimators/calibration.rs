@@ -10,33 +10,37 @@
 //!
 //! Experiments correct the database the way the paper does it: each model's predictions on the
 //! experiment recordings are regressed on the measured values, y = a + b·ŷ; when that correction
-//! is significant (F-test, p < 0.01) it is folded into the model's coefficients.
+//! helps on experiment data it was not fitted on (see [`ExperimentCorrection`]) it is folded
+//! into the model's coefficients. Where an offset or a gain cannot mend the database's response
+//! (the spindle elongation: the twin's DOE sweeps speeds and coolant far from a production
+//! day's), the experiments may instead join the fit, weighted to count as much as the whole
+//! database, when blocked cross-validation over them says that predicts them better.
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use std::collections::BTreeMap;
 
 use crate::discrepancy::series::rms;
 use crate::fit::autocorrelation::mean_above_zero;
-use crate::fit::{Design, FitError, OlsFit, blocked_cross_validation, ols};
+use crate::fit::{Design, FitError, OlsFit, OlsOptions, blocked_cross_validation, ols, wls};
 use crate::profile::{AxisKind, MachineProfile};
-use crate::signal::channel::AMBIENT;
+use crate::signal::channel::{AMBIENT, COOLANT};
 use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 
 use super::abnormality;
 use super::models::{
-    AMBIENT_LAG_FEATURES, AbnormalityModel, AxisModels, Calibration, ElongationModel, HeatModel,
-    IDEAL_TORQUE_FEATURES, LinearModel,
+    AMBIENT_LAG_FEATURES, AbnormalityModel, AxisModels, Calibration, ELONGATION_FEATURES,
+    ELONGATION_TAU_NAMES, ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES, LinearModel,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
-    HeatAccumulator, HeatInputs, RoomLags, SpeedHeat, StraightnessInputs, TorqueSplitEstimator,
-    heat_inputs,
+    ElongationFeatures, ElongationInputs, HeatAccumulator, HeatInputs, RoomLags, SpeedHeat,
+    StraightnessInputs, TorqueSplitEstimator, heat_inputs,
 };
 
 /// Candidate heat-accumulation time constants, s.
 const HEAT_TAUS_S: &[f64] = &[300.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
-/// Candidate (fast, middle, slow) time constants of the elongation model, s. Each is tried
-/// with the fast and slow terms only and with all three.
+/// Candidate (fast, middle, slow) time constants of the elongation model's speed and load
+/// heat, s. Each is tried with the fast and slow terms only and with all three.
 const ELONGATION_TAUS_S: &[(f64, f64, f64)] = &[
     (200.0, 1000.0, 5000.0),
     (300.0, 1800.0, 7200.0),
@@ -45,6 +49,11 @@ const ELONGATION_TAUS_S: &[(f64, f64, f64)] = &[
     (1200.0, 3600.0, 5400.0),
     (1800.0, 3600.0, 7200.0),
 ];
+/// Time constants of the elongation's full heat bank (every input of
+/// `ELONGATION_HEAT_INPUTS` over each), s: from the bearings' minutes to the bed's hours.
+const ELONGATION_BANK_TAUS_S: [f64; 4] = [600.0, 1800.0, 5400.0, 16200.0];
+/// `ModelReport::selected_by` of a model the experiments were fitted into.
+const SELECTED_BY_JOINED: &str = "experiments_joined";
 /// Blocks of the time-blocked cross-validation.
 const CV_FOLDS: usize = 5;
 /// Rows dropped on each side of a held-out block (at 1 Hz: 10 minutes).
@@ -103,7 +112,9 @@ pub struct ModelReport {
     /// Time-blocked cross-validated R².
     pub cv_r2: f64,
     /// How the model form (time constants, optional terms) was chosen: on the `experiments`
-    /// or by `blocked_cv` on the database.
+    /// (a database fit), by `blocked_cv` on the database, or `experiments_joined` (fitted on
+    /// the database and the experiments together, scored by blocked cross-validation over the
+    /// experiments; no correction follows, the experiments are already in the fit).
     pub selected_by: &'static str,
     /// The R² that chose it (on the experiments, or cross-validated).
     pub selection_r2: f64,
@@ -275,7 +286,10 @@ pub fn calibrate(
                             )];
                             with_room_variant(base, r, has_ambient)
                         },
-                        Scoring::Absolute,
+                        Choice {
+                            scoring: Scoring::Absolute,
+                            experiments: ExperimentUse::Choose,
+                        },
                     )?;
                     models.motor_flange = Some(fitted.model.clone());
                     report.models.push(fitted.report);
@@ -394,7 +408,10 @@ pub fn calibrate(
                         };
                         straightness_candidates(inputs, r, has_ambient)
                     },
-                    Scoring::Absolute,
+                    Choice {
+                        scoring: Scoring::Absolute,
+                        experiments: ExperimentUse::Choose,
+                    },
                 )?;
                 out.push(fitted.model);
                 report.models.push(fitted.report);
@@ -517,6 +534,29 @@ enum Scoring {
     FromFirstSample,
 }
 
+/// What the experiments may do to a model's fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ExperimentUse {
+    /// Choose among the database fits of the candidate forms, and correct the chosen one
+    /// afterwards (offset, gain) if that helps on held-out experiment data: the paper's way.
+    Choose,
+    /// As `Choose`, and each form is also offered fitted on the database and the experiments
+    /// together, weighted so the experiments count as much as the whole database, and scored on
+    /// the experiments by time-blocked cross-validation (each block predicted by a fit that
+    /// never saw it or its neighbours). For a model whose database response differs from
+    /// the real machine's in ways an offset or a gain cannot mend.
+    ChooseOrJoin,
+}
+
+/// How `fit_best` chooses among candidate forms.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Choice {
+    /// How predictions on an experiment meet its reference.
+    scoring: Scoring,
+    /// What the experiments may do to the fit.
+    experiments: ExperimentUse,
+}
+
 /// Named regressor columns.
 type Columns = Vec<(String, Vec<f64>)>;
 
@@ -534,8 +574,12 @@ fn fit_best(
     experiments: &[Recording],
     target: &str,
     candidates: &Candidates<'_>,
-    scoring: Scoring,
+    choice: Choice,
 ) -> Result<Fitted, CalibrationError> {
+    let Choice {
+        scoring,
+        experiments: experiment_use,
+    } = choice;
     let mut per_recording = Vec::with_capacity(database.len());
     let mut y = Vec::new();
     for (index, recording) in database.iter().enumerate() {
@@ -557,6 +601,29 @@ fn fit_best(
     let mut last_error = None;
     for c in 0..count {
         let columns = stack(&per_recording, c);
+        let joinable = experiment_use == ExperimentUse::ChooseOrJoin
+            && y_experiment.len() >= MIN_EXPERIMENT_ROWS;
+        if joinable {
+            let experiment = Rows {
+                y: &y_experiment,
+                columns: &stack(&per_experiment, c),
+                starts: &experiment_starts,
+            };
+            let database = Rows {
+                y: &y,
+                columns: &columns,
+                starts: &[0],
+            };
+            match fit_joined(estimate, symbol, target, &database, &experiment, scoring) {
+                Ok(joined) => {
+                    let score = joined.report.selection_r2;
+                    if best.as_ref().is_none_or(|(b, _)| score > *b + 1e-4) {
+                        best = Some((score, joined));
+                    }
+                }
+                Err(e) => last_error = Some(e),
+            }
+        }
         // A candidate whose terms are collinear on this database (the room term can be a
         // combination of estimated temperatures) is not an error while another one fits.
         let mut fitted = match fit_columns(estimate, symbol, target, y.clone(), columns) {
@@ -599,6 +666,97 @@ fn fit_best(
             message: "no candidate model".into(),
         }),
     }
+}
+
+/// A target and its candidate columns over stacked recordings that start at `starts`.
+struct Rows<'a> {
+    y: &'a [f64],
+    columns: &'a Columns,
+    starts: &'a [usize],
+}
+
+impl Rows<'_> {
+    /// Where the recording holding row `i` starts.
+    fn start_of(&self, i: usize) -> usize {
+        let k = self.starts.partition_point(|&s| s <= i);
+        self.starts[k.saturating_sub(1)]
+    }
+}
+
+/// One candidate fitted on the database and the experiments together by weighted least
+/// squares, every experiment row weighing n_database / n_experiment so that the experiments
+/// count as much as the whole database. Its selection score is the R² on the experiments of
+/// time-blocked cross-validation over them: each block is predicted by a fit on the database
+/// and the experiment rows outside the block and its `CV_GAP_ROWS` neighbours.
+fn fit_joined(
+    estimate: &str,
+    symbol: &str,
+    target: &str,
+    database: &Rows<'_>,
+    experiment: &Rows<'_>,
+    scoring: Scoring,
+) -> Result<Fitted, CalibrationError> {
+    let err = |source: FitError| CalibrationError::Fit {
+        estimate: estimate.to_string(),
+        source,
+    };
+    let (n_db, n_exp) = (database.y.len(), experiment.y.len());
+    let experiment_weight = n_db as f64 / n_exp as f64;
+    let weights: Vec<f64> = (0..n_db + n_exp)
+        .map(|i| if i < n_db { 1.0 } else { experiment_weight })
+        .collect();
+    let columns: Columns = database
+        .columns
+        .iter()
+        .zip(experiment.columns)
+        .map(|((name, d), (_, e))| (name.clone(), [d.as_slice(), e].concat()))
+        .collect();
+    let design =
+        Design::from_columns(target, [database.y, experiment.y].concat(), columns).map_err(err)?;
+    let folds = CV_FOLDS.min(n_exp / 10).max(2);
+    let gap = CV_GAP_ROWS.min(n_exp / (4 * folds));
+    let mut held_out = vec![f64::NAN; n_exp];
+    for fold in 0..folds {
+        let (start, end) = (fold * n_exp / folds, (fold + 1) * n_exp / folds);
+        let keep = |i: usize| i < n_db || i - n_db + gap < start || i - n_db >= end + gap;
+        let training = design.with_rows(keep);
+        let training_weights: Vec<f64> = (0..weights.len())
+            .filter(|&i| keep(i))
+            .map(|i| weights[i])
+            .collect();
+        let fit = wls(&training, &training_weights, &OlsOptions::default()).map_err(err)?;
+        let predicted = predict(&fit.estimates(), experiment.columns, n_exp);
+        for (j, slot) in held_out.iter_mut().enumerate().take(end).skip(start) {
+            let zero = match scoring {
+                Scoring::Absolute => 0.0,
+                Scoring::FromFirstSample => predicted[experiment.start_of(j)],
+            };
+            *slot = predicted[j] - zero;
+        }
+    }
+    let score = r_squared(experiment.y, &held_out);
+    let fit = wls(&design, &weights, &OlsOptions::default()).map_err(err)?;
+    let model = linear_model(symbol, &fit);
+    let report = ModelReport {
+        estimate: estimate.to_string(),
+        equation: format!(
+            "{} (fitted on the database and the experiments, weighted 1 : {experiment_weight:.2} per row)",
+            model.equation
+        ),
+        n: fit.n,
+        r2: fit.r2,
+        f_statistic: fit.f_statistic,
+        f_p_value: fit.f_p_value,
+        cv_r2: score,
+        selected_by: SELECTED_BY_JOINED,
+        selection_r2: score,
+        experiment_correction: None,
+    };
+    Ok(Fitted {
+        model,
+        report,
+        cv_r2: score,
+    })
 }
 
 /// c₀ + Σ cᵢ·xᵢ for every row.
@@ -939,7 +1097,10 @@ fn fit_heat_model(
                 }
                 Ok(candidates)
             },
-            Scoring::Absolute,
+            Choice {
+                scoring: Scoring::Absolute,
+                experiments: ExperimentUse::Choose,
+            },
         )?;
         let score = fitted.report.selection_r2;
         if best.as_ref().is_none_or(|(b, _, _)| score > *b + 1e-4) {
@@ -968,8 +1129,11 @@ fn fit_heat_model(
 
 /// Eq. 15 for a spindle: ΔT_stator, speed and load plus heat accumulated from the speed
 /// (bearing friction) and, as a candidate, from the load (copper losses), over two or three
-/// time constants, with or without the room; the time constants and terms chosen like every
-/// other model (experiments, else blocked cross-validation).
+/// time constants, with or without the room. Where the recordings carry the current, the
+/// coolant and the room, the full heat bank is a candidate too: every input of
+/// `ELONGATION_HEAT_INPUTS` over the four `ELONGATION_BANK_TAUS_S`, with and without the room
+/// and its lags. The form is chosen like every other model (experiments, else blocked
+/// cross-validation), and the experiments may join the fit.
 fn fit_elongation(
     axis: AxisId,
     database: &[Recording],
@@ -981,8 +1145,46 @@ fn fit_elongation(
         return Ok(None);
     }
     let estimate = format!("{axis}.spindle_elongation");
-    let mut best: Option<((f64, f64, f64), Fitted)> = None;
-    for &(fast, mid, slow) in ELONGATION_TAUS_S {
+    let current = axis_column(axis, Quantity::Current);
+    let has_bank_inputs = has_ambient
+        && database
+            .iter()
+            .all(|r| r.try_column(&current).is_some() && r.try_column(COOLANT).is_some());
+    let names = |list: &[&str]| list.iter().map(|n| n.to_string()).collect::<Vec<_>>();
+    let base = names(&["delta_stator", "speed", "load"]);
+    let mut families: Vec<([f64; 4], Vec<Vec<String>>)> = ELONGATION_TAUS_S
+        .iter()
+        .map(|&(fast, mid, slow)| {
+            let mut sets = Vec::new();
+            for taus in [&["fast", "slow"][..], &["fast", "mid", "slow"][..]] {
+                let heat = |input: &'static str| taus.iter().map(move |t| format!("{input}_{t}"));
+                let speed_only: Vec<String> = base.iter().cloned().chain(heat("heat")).collect();
+                let with_load: Vec<String> = speed_only
+                    .iter()
+                    .cloned()
+                    .chain(heat("load_heat"))
+                    .collect();
+                for set in [speed_only, with_load] {
+                    if has_ambient {
+                        let mut with_room = set.clone();
+                        with_room.push("ambient".to_string());
+                        sets.push(with_room);
+                    }
+                    sets.push(set);
+                }
+            }
+            ([fast, mid, slow, ELONGATION_BANK_TAUS_S[3]], sets)
+        })
+        .collect();
+    if has_bank_inputs {
+        // ELONGATION_FEATURES ends with the room and its three lags.
+        let room_start = ELONGATION_FEATURES.len() - 4;
+        let bank = names(&ELONGATION_FEATURES[1..room_start]);
+        let with_room = names(&ELONGATION_FEATURES[1..]);
+        families.push((ELONGATION_BANK_TAUS_S, vec![with_room, bank]));
+    }
+    let mut best: Option<([f64; 4], Fitted)> = None;
+    for (taus, sets) in &families {
         let fitted = fit_best(
             &estimate,
             "δ_R",
@@ -990,77 +1192,109 @@ fn fit_elongation(
             experiments,
             &target,
             &|_, _, r| {
-                let stator = r.column_for(&axis_column(axis, Quantity::StatorTemp), &estimate)?;
-                let speed = r.column_for(&axis_column(axis, Quantity::Speed), &estimate)?;
-                let load = r.column_for(&axis_column(axis, Quantity::Load), &estimate)?;
-                let krpm: Vec<f64> = speed.iter().map(|s| s.abs() / 1000.0).collect();
-                let load: Vec<f64> = load.iter().map(|l| l.abs()).collect();
-                let first = stator.first().copied().unwrap_or(0.0);
-                let base = vec![
-                    (
-                        "delta_stator".to_string(),
-                        stator.iter().map(|t| t - first).collect(),
-                    ),
-                    ("speed".to_string(), krpm.clone()),
-                    ("load".to_string(), load.clone()),
-                ];
-                let heat = |name: &str, input: &[f64], taus: &[(&str, f64)]| {
-                    taus.iter()
-                        .map(|(suffix, tau)| {
-                            (
-                                format!("{name}_{suffix}"),
-                                accumulate(r.time(), input, *tau),
-                            )
-                        })
-                        .collect::<Columns>()
-                };
-                let mut candidates = Vec::new();
-                for taus in [
-                    &[("fast", fast), ("slow", slow)][..],
-                    &[("fast", fast), ("mid", mid), ("slow", slow)][..],
-                ] {
-                    let mut speed_only = base.clone();
-                    speed_only.extend(heat("heat", &krpm, taus));
-                    let mut with_load = speed_only.clone();
-                    with_load.extend(heat("load_heat", &load, taus));
-                    candidates.extend(with_room_variant(speed_only, r, has_ambient)?);
-                    candidates.extend(with_room_variant(with_load, r, has_ambient)?);
-                }
-                Ok(candidates)
+                let features = elongation_columns(axis, r, *taus, &estimate)?;
+                sets.iter()
+                    .map(|set| {
+                        set.iter()
+                            .map(|name| {
+                                features
+                                    .iter()
+                                    .find(|(n, _)| n == name)
+                                    .cloned()
+                                    .ok_or_else(|| CalibrationError::NoData {
+                                        estimate: estimate.clone(),
+                                        message: format!("no elongation feature `{name}`"),
+                                    })
+                            })
+                            .collect()
+                    })
+                    .collect()
             },
-            Scoring::FromFirstSample,
+            Choice {
+                scoring: Scoring::FromFirstSample,
+                experiments: ExperimentUse::ChooseOrJoin,
+            },
         )?;
         if best
             .as_ref()
             .is_none_or(|(_, b)| fitted.report.selection_r2 > b.report.selection_r2 + 1e-4)
         {
-            best = Some(((fast, mid, slow), fitted));
+            best = Some((*taus, fitted));
         }
     }
-    Ok(best.map(|((fast, mid, slow), fitted)| {
+    Ok(best.map(|(taus, fitted)| {
         let mut report = fitted.report;
-        let uses_mid = fitted.model.terms.iter().any(|t| t.ends_with("_mid"));
-        report.equation = if uses_mid {
-            format!(
-                "{}; heat terms accumulated with τ = {fast} s, {mid} s and {slow} s",
-                report.equation
-            )
-        } else {
-            format!(
-                "{}; heat terms accumulated with τ = {fast} s and {slow} s",
-                report.equation
-            )
-        };
+        let used: Vec<String> = ELONGATION_TAU_NAMES
+            .iter()
+            .zip(taus)
+            .filter(|(name, _)| {
+                let suffix = format!("_{name}");
+                fitted.model.terms.iter().any(|t| t.ends_with(&suffix))
+            })
+            .map(|(_, tau)| format!("{tau} s"))
+            .collect();
+        if !used.is_empty() {
+            report.equation = format!(
+                "{}; heat terms accumulated with τ = {}",
+                report.equation,
+                used.join(", ")
+            );
+        }
+        let [fast, mid, slow, long] = taus;
         (
             ElongationModel {
                 fast_tau_s: fast,
                 mid_tau_s: mid,
                 slow_tau_s: slow,
+                long_tau_s: long,
                 model: fitted.model,
             },
             report,
         )
     }))
+}
+
+/// Every feature of `ELONGATION_FEATURES` but the constant over a recording, computed by the
+/// streaming estimator's own [`ElongationFeatures`] (current, coolant and room are NaN where
+/// the recording lacks them; only candidates that need them read them).
+fn elongation_columns(
+    axis: AxisId,
+    recording: &Recording,
+    taus: [f64; 4],
+    estimate: &str,
+) -> Result<Columns, CalibrationError> {
+    let stator = recording.column_for(&axis_column(axis, Quantity::StatorTemp), estimate)?;
+    let speed = recording.column_for(&axis_column(axis, Quantity::Speed), estimate)?;
+    let load = recording.column_for(&axis_column(axis, Quantity::Load), estimate)?;
+    let optional = |name: &str| recording.try_column(name);
+    let current = optional(&axis_column(axis, Quantity::Current));
+    let coolant = optional(COOLANT);
+    let ambient = optional(AMBIENT);
+    let at = |column: Option<&[f64]>, i: usize| column.map_or(f64::NAN, |c| c[i]);
+    let time = recording.time();
+    let mut room = RoomLags::default();
+    let mut features = ElongationFeatures::new(taus);
+    let mut columns: Columns = ELONGATION_FEATURES[1..]
+        .iter()
+        .map(|name| (name.to_string(), Vec::with_capacity(time.len())))
+        .collect();
+    let mut previous = time.first().copied().unwrap_or(0.0);
+    for (i, &t) in time.iter().enumerate() {
+        let dt = (t - previous).max(0.0);
+        previous = t;
+        let inputs = ElongationInputs {
+            stator_C: stator[i],
+            speed_rpm: speed[i],
+            load_pct: load[i],
+            current_A: at(current, i),
+            coolant_on: at(coolant, i),
+            room: room.update(at(ambient, i), dt),
+        };
+        for ((_, column), value) in columns.iter_mut().zip(&features.update(&inputs, dt)[1..]) {
+            column.push(*value);
+        }
+    }
+    Ok(columns)
 }
 
 /// What the straightness models read (estimated temperatures and thermal states) over a
@@ -1188,6 +1422,13 @@ fn apply_experiments(
         let Some((axis, slot)) = model_slot(&column, stage) else {
             continue;
         };
+        let joined = report
+            .models
+            .iter()
+            .any(|m| slot.matches(axis, &m.estimate) && m.selected_by == SELECTED_BY_JOINED);
+        if joined {
+            continue;
+        }
         let n: usize = per_experiment.iter().map(|(p, _)| p.len()).sum();
         if n < MIN_EXPERIMENT_ROWS {
             continue;
@@ -1451,5 +1692,81 @@ mod tests {
         assert!((c.gain - 1.2).abs() < 0.05, "{c:?}");
         assert_eq!(c.offset, 0.0);
         assert!(c.cv_rmse_offset.is_nan());
+    }
+    /// A recording of `y = 1 + 2·x1 + slope_x2·x2 + noise` at 1 Hz with two slow drivers.
+    fn linear_recording(rows: usize, slope_x2: f64, seed: u64) -> Recording {
+        let names = ["time_s", "x1", "x2", "y"].map(String::from).to_vec();
+        let mut recording = Recording::new(format!("synthetic-{seed}"), names).unwrap();
+        let mut draw = noise(seed);
+        let phase = seed as f64;
+        for i in 0..rows {
+            let t = i as f64;
+            let x1 = (t / 90.0 + phase).sin();
+            let x2 = (t / 230.0 + 2.0 * phase).cos();
+            let y = 1.0 + 2.0 * x1 + slope_x2 * x2 + 0.05 * draw();
+            recording.push_row(&[t, x1, x2, y]).unwrap();
+        }
+        recording
+    }
+
+    fn fit_x1_x2(database: &Recording, experiment: &Recording, using: ExperimentUse) -> Fitted {
+        let columns = |r: &Recording| -> Result<Vec<Columns>, CalibrationError> {
+            let column = |name: &str| -> Result<(String, Vec<f64>), CalibrationError> {
+                Ok((name.to_string(), r.column_for(name, "test")?.to_vec()))
+            };
+            Ok(vec![vec![column("x1")?, column("x2")?]])
+        };
+        fit_best(
+            "test",
+            "y",
+            std::slice::from_ref(database),
+            std::slice::from_ref(experiment),
+            "y",
+            &|_, _, r| columns(r),
+            Choice {
+                scoring: Scoring::Absolute,
+                experiments: using,
+            },
+        )
+        .unwrap()
+    }
+
+    /// The real machine responds to x2 the other way round from the database: no offset or
+    /// gain mends that, but fitting the experiments in does, and they count as much as the
+    /// database (which is five times longer), so the x2 slope lands half way.
+    #[test]
+    fn experiments_join_the_fit_when_the_database_response_differs() {
+        let database = linear_recording(20_000, 0.5, 1);
+        let experiment = linear_recording(4_000, -0.5, 2);
+        let chosen = fit_x1_x2(&database, &experiment, ExperimentUse::Choose);
+        assert_eq!(chosen.report.selected_by, "experiments");
+        let joined = fit_x1_x2(&database, &experiment, ExperimentUse::ChooseOrJoin);
+        assert_eq!(joined.report.selected_by, SELECTED_BY_JOINED);
+        assert!(
+            joined.report.selection_r2 > chosen.report.selection_r2 + 0.02,
+            "joined {} vs database only {}",
+            joined.report.selection_r2,
+            chosen.report.selection_r2
+        );
+        let slope = |f: &Fitted, term: &str| {
+            let i = f.model.terms.iter().position(|t| t == term).unwrap();
+            f.model.coefficients[i]
+        };
+        assert!(slope(&joined, "x2").abs() < 0.1, "{:?}", joined.model);
+        assert!((slope(&joined, "x1") - 2.0).abs() < 0.05);
+        assert!((slope(&chosen, "x2") - 0.5).abs() < 0.02);
+    }
+
+    /// When the database already describes the machine, whichever fit wins keeps its slopes.
+    #[test]
+    fn a_database_that_describes_the_machine_keeps_its_slopes() {
+        let database = linear_recording(20_000, 0.5, 3);
+        let experiment = linear_recording(4_000, 0.5, 4);
+        let fitted = fit_x1_x2(&database, &experiment, ExperimentUse::ChooseOrJoin);
+        assert!(fitted.report.selection_r2 > 0.99, "{:?}", fitted.report);
+        for (term, slope) in [("x1", 2.0), ("x2", 0.5)] {
+            let i = fitted.model.terms.iter().position(|t| t == term).unwrap();
+            assert!((fitted.model.coefficients[i] - slope).abs() < 0.01);
+        }
     }
 }

@@ -70,11 +70,13 @@ pub const STRAIGHTNESS_FEATURES: &[&str] = &[
     "ambient_lag_90min",
     "ambient_lag_270min",
 ];
-/// Spindle elongation (Eq. 15): ΔT of the stator since tool calibration, speed, load, plus
-/// heat accumulated over a fast, a middle and a slow time constant (Eq. 10's form applied to
-/// the spindle's losses) — of the speed (bearing friction) and of the load (motor copper
-/// losses, which reach the housing through the stator) — and the room. A fitted model uses a
-/// subset.
+/// Spindle elongation (Eq. 15): ΔT of the stator since tool calibration, speed, load; heat
+/// accumulated over a fast, a middle, a slow and a long time constant (Eq. 10's form applied to
+/// the spindle's losses) of each of [`ELONGATION_HEAT_INPUTS`]; the room and the room through
+/// the lags of [`AMBIENT_LAG_TAUS_S`] (the bed that carries the tool follows it slowly). The
+/// room terms are counted from the tool-calibration moment like ΔT. A fitted model uses a
+/// subset; the names are `{input}_{tau}` in the order input-major, then
+/// [`ELONGATION_TAU_NAMES`].
 pub const ELONGATION_FEATURES: &[&str] = &[
     "const",
     "delta_stator",
@@ -83,11 +85,49 @@ pub const ELONGATION_FEATURES: &[&str] = &[
     "heat_fast",
     "heat_mid",
     "heat_slow",
+    "heat_long",
     "load_heat_fast",
     "load_heat_mid",
     "load_heat_slow",
+    "load_heat_long",
+    "churning_heat_fast",
+    "churning_heat_mid",
+    "churning_heat_slow",
+    "churning_heat_long",
+    "copper_heat_fast",
+    "copper_heat_mid",
+    "copper_heat_slow",
+    "copper_heat_long",
+    "coolant_fast",
+    "coolant_mid",
+    "coolant_slow",
+    "coolant_long",
+    "coolant_cooling_fast",
+    "coolant_cooling_mid",
+    "coolant_cooling_slow",
+    "coolant_cooling_long",
     "ambient",
+    "ambient_lag_30min",
+    "ambient_lag_90min",
+    "ambient_lag_270min",
 ];
+/// What the spindle's heat terms accumulate, as feature-name prefixes: `heat`, the speed
+/// (bearing drag and seals); `load_heat`, the load (cutting torque, through the bearings);
+/// `churning_heat`, |n|^(5/3) (Palmgren's load-free bearing torque grows as (ν·n)^(2/3));
+/// `copper_heat`, the current squared (I²R losses reaching the housing through the stator);
+/// `coolant`, the coolant being on; `coolant_cooling`, the coolant being on times the
+/// stator's rise over the room (the jacket takes heat in proportion to how warm the headstock
+/// runs above the coolant, which a chiller holds near the room).
+pub const ELONGATION_HEAT_INPUTS: [&str; 6] = [
+    "heat",
+    "load_heat",
+    "churning_heat",
+    "copper_heat",
+    "coolant",
+    "coolant_cooling",
+];
+/// Suffixes of the elongation's accumulation time constants, shortest first.
+pub const ELONGATION_TAU_NAMES: [&str; 4] = ["fast", "mid", "slow", "long"];
 /// Ideal (friction) torque of a steadily running axis, for the abnormality score (see
 /// [`super::abnormality`]): constant, direction, speed, the churning term direction·|n|^(2/3)
 /// and it times the stator's rise over the room (and its square) or, without a room
@@ -147,14 +187,23 @@ pub struct HeatModel {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ElongationModel {
-    /// Time constant of `heat_fast` and `load_heat_fast`, s.
+    /// Time constant of the `*_fast` heat terms, s.
     pub fast_tau_s: f64,
-    /// Time constant of `heat_mid` and `load_heat_mid`, s.
+    /// Time constant of the `*_mid` heat terms, s.
     pub mid_tau_s: f64,
-    /// Time constant of `heat_slow` and `load_heat_slow`, s.
+    /// Time constant of the `*_slow` heat terms, s.
     pub slow_tau_s: f64,
+    /// Time constant of the `*_long` heat terms, s (profiles from before it existed use none
+    /// of them).
+    #[serde(default = "default_long_tau_s")]
+    pub long_tau_s: f64,
     /// The model over `ELONGATION_FEATURES`.
     pub model: LinearModel,
+}
+
+/// The long time constant of a profile written before the elongation had one, s.
+fn default_long_tau_s() -> f64 {
+    16200.0
 }
 
 /// The motor abnormality model: the healthy axis's ideal torque when running steadily.

@@ -3,14 +3,14 @@
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use crate::profile::{AxisKind, MachineProfile};
-use crate::signal::channel::{AMBIENT, CUT_DEPTH};
+use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
 use super::models::{AMBIENT_LAG_FEATURES, AxisModels};
 use super::streaming::{
-    ComponentThermalEstimator, MAX_NODES, MotorFlangeEstimator, RoomLags, SpeedHeat,
-    SpindleElongationEstimator, StraightnessEstimator, StraightnessInputs, TorqueSplit,
+    ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator, RoomLags,
+    SpeedHeat, SpindleElongationEstimator, StraightnessEstimator, StraightnessInputs, TorqueSplit,
     TorqueSplitEstimator, minimum_zone_straightness,
 };
 
@@ -126,6 +126,7 @@ struct AxisChannels {
     load: Option<usize>,
     stator: usize,
     position: Option<usize>,
+    current: Option<usize>,
 }
 
 impl AxisChannels {
@@ -143,6 +144,7 @@ impl AxisChannels {
             load: schema.index_of(&axis_column(axis, Quantity::Load)),
             stator: need(Quantity::StatorTemp)?,
             position: schema.index_of(&axis_column(axis, Quantity::Position)),
+            current: schema.index_of(&axis_column(axis, Quantity::Current)),
         })
     }
 }
@@ -177,6 +179,7 @@ pub struct EstimatorPipeline {
     feed: Vec<FeedAxisPipeline>,
     spindles: Vec<SpindlePipeline>,
     ambient: Option<usize>,
+    coolant: Option<usize>,
     /// The room through the lags the heat and straightness models may read.
     room: RoomLags,
     cut_depth: Option<usize>,
@@ -192,6 +195,7 @@ impl EstimatorPipeline {
             .as_ref()
             .ok_or_else(|| PipelineError::NotCalibrated(profile.name.clone()))?;
         let ambient = schema.index_of(AMBIENT);
+        let coolant = schema.index_of(COOLANT);
         let cut_depth = schema.index_of(CUT_DEPTH);
         let mut notes = Vec::new();
         let mut feed = Vec::new();
@@ -305,6 +309,26 @@ impl EstimatorPipeline {
                             SpindleElongationEstimator::new(m).map_err(model_err("elongation"))
                         })
                         .transpose()?;
+                    if let Some(e) = &elongation {
+                        let needs = [
+                            (
+                                "copper_heat",
+                                axis_column(axis, Quantity::Current),
+                                channels.current,
+                            ),
+                            ("coolant", COOLANT.to_string(), coolant),
+                        ];
+                        for (prefix, column, index) in needs {
+                            if e.uses_features_starting_with(prefix) && index.is_none() {
+                                return Err(PipelineError::MissingColumn {
+                                    column,
+                                    purpose: format!(
+                                        "the {axis} elongation model, which was fitted with it"
+                                    ),
+                                });
+                            }
+                        }
+                    }
                     if elongation.is_some() || abnormality.is_some() {
                         spindles.push(SpindlePipeline {
                             axis,
@@ -324,6 +348,7 @@ impl EstimatorPipeline {
             feed,
             spindles,
             ambient,
+            coolant,
             room: RoomLags::default(),
             cut_depth,
             previous_time: None,
@@ -425,12 +450,20 @@ impl EstimatorPipeline {
                 }
             }
         }
+        let coolant = self.coolant.map_or(f64::NAN, |i| frame[i]);
         for spindle in &mut self.spindles {
             let c = spindle.channels;
             let load = c.load.map_or(0.0, |i| frame[i]);
             if let Some(elongation) = &mut spindle.elongation {
-                spindle.estimate.elongation_um =
-                    elongation.update(frame[c.stator], frame[c.speed], load, ambient, dt);
+                let inputs = ElongationInputs {
+                    stator_C: frame[c.stator],
+                    speed_rpm: frame[c.speed],
+                    load_pct: load,
+                    current_A: c.current.map_or(f64::NAN, |i| frame[i]),
+                    coolant_on: coolant,
+                    room,
+                };
+                spindle.estimate.elongation_um = elongation.update(&inputs, dt);
             }
             if let Some(abnormality) = &mut spindle.abnormality {
                 spindle.estimate.abnormality = abnormality.update(&sample(&c, f64::NAN));

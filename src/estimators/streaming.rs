@@ -438,17 +438,118 @@ pub fn minimum_zone_straightness(x: &[f64], d: &[f64]) -> f64 {
     best
 }
 
-/// Spindle thermal elongation (Eq. 15) with ΔT measured from the tool-calibration moment,
-/// which the operator can reset.
+/// One frame of what the spindle elongation reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElongationInputs {
+    /// Stator temperature, °C.
+    pub stator_C: f64,
+    /// Spindle speed, rpm.
+    pub speed_rpm: f64,
+    /// Load, % of rated (0 when the recording has none).
+    pub load_pct: f64,
+    /// Motor current, A (NaN when the recording has none).
+    pub current_A: f64,
+    /// Coolant on (1) or off (0) (NaN when the recording has none).
+    pub coolant_on: f64,
+    /// The room now and through its lags.
+    pub room: Room,
+}
+
+/// Number of [`ELONGATION_FEATURES`].
+const ELONGATION_FEATURE_COUNT: usize = 32;
+
+/// The values of [`ELONGATION_FEATURES`] frame by frame, ΔT and the room counted from the
+/// tool-calibration moment. Calibration builds its regressor columns with this same type, so
+/// the fitted coefficients meet exactly the features they were fitted on.
+#[derive(Debug, Clone)]
+pub struct ElongationFeatures {
+    /// One accumulator per input of [`super::models::ELONGATION_HEAT_INPUTS`] and time
+    /// constant of [`super::models::ELONGATION_TAU_NAMES`].
+    heat: [[HeatAccumulator; 4]; 6],
+    stator_at_calibration: Option<f64>,
+    /// The room and its lags at the calibration moment (the first finite room reading since).
+    room_at_calibration: Option<(f64, [f64; 3])>,
+    values: [f64; ELONGATION_FEATURE_COUNT],
+}
+
+impl ElongationFeatures {
+    /// A spindle at rest, with heat accumulated over `taus_s` (fast, mid, slow, long).
+    pub fn new(taus_s: [f64; 4]) -> Self {
+        ElongationFeatures {
+            heat: [(); 6].map(|_| taus_s.map(HeatAccumulator::new)),
+            stator_at_calibration: None,
+            room_at_calibration: None,
+            values: [0.0; ELONGATION_FEATURE_COUNT],
+        }
+    }
+
+    /// The time constants of a fitted model.
+    pub fn for_model(model: &ElongationModel) -> Self {
+        ElongationFeatures::new([
+            model.fast_tau_s,
+            model.mid_tau_s,
+            model.slow_tau_s,
+            model.long_tau_s,
+        ])
+    }
+
+    /// ΔT and the room count from the next frame.
+    pub fn reset_tool_calibration(&mut self) {
+        self.stator_at_calibration = None;
+        self.room_at_calibration = None;
+    }
+
+    /// Takes one frame over `dt` seconds; returns the features in [`ELONGATION_FEATURES`]'
+    /// order.
+    #[inline]
+    pub fn update(
+        &mut self,
+        inputs: &ElongationInputs,
+        dt: f64,
+    ) -> &[f64; ELONGATION_FEATURE_COUNT] {
+        let speed = SpeedHeat::of(inputs.speed_rpm);
+        let load = inputs.load_pct.abs();
+        let room = inputs.room.ambient_C;
+        let drivers = [
+            speed.krpm,
+            load,
+            speed.churning,
+            inputs.current_A * inputs.current_A / 100.0,
+            inputs.coolant_on,
+            inputs.coolant_on * (inputs.stator_C - room),
+        ];
+        let stator_reference = *self.stator_at_calibration.get_or_insert(inputs.stator_C);
+        if self.room_at_calibration.is_none() && room.is_finite() {
+            self.room_at_calibration = Some((room, inputs.room.lags_C));
+        }
+        let (room_reference, lags_reference) = self
+            .room_at_calibration
+            .unwrap_or((f64::NAN, [f64::NAN; 3]));
+        let v = &mut self.values;
+        v[0] = 1.0;
+        v[1] = inputs.stator_C - stator_reference;
+        v[2] = speed.krpm;
+        v[3] = load;
+        for (k, (accumulators, driver)) in self.heat.iter_mut().zip(drivers).enumerate() {
+            for (j, accumulator) in accumulators.iter_mut().enumerate() {
+                v[4 + 4 * k + j] = accumulator.update(driver, dt);
+            }
+        }
+        v[28] = room - room_reference;
+        for (j, (lag, reference)) in inputs.room.lags_C.iter().zip(lags_reference).enumerate() {
+            v[29 + j] = lag - reference;
+        }
+        &self.values
+    }
+}
+
+/// Spindle thermal elongation (Eq. 15) since the tool-calibration moment, which the operator
+/// can reset.
 #[derive(Debug, Clone)]
 pub struct SpindleElongationEstimator {
     model: BoundModel,
-    /// Speed heat over the fast, middle and slow time constants.
-    heat: [HeatAccumulator; 3],
-    /// Load heat over the same time constants.
-    load_heat: [HeatAccumulator; 3],
-    stator_at_calibration: Option<f64>,
-    elongation_at_calibration: f64,
+    features: ElongationFeatures,
+    elongation_at_calibration: Option<f64>,
 }
 
 impl SpindleElongationEstimator {
@@ -456,63 +557,36 @@ impl SpindleElongationEstimator {
     pub fn new(model: &ElongationModel) -> Result<Self, String> {
         Ok(SpindleElongationEstimator {
             model: BoundModel::bind(&model.model, ELONGATION_FEATURES)?,
-            heat: [model.fast_tau_s, model.mid_tau_s, model.slow_tau_s].map(HeatAccumulator::new),
-            load_heat: [model.fast_tau_s, model.mid_tau_s, model.slow_tau_s]
-                .map(HeatAccumulator::new),
-            stator_at_calibration: None,
-            elongation_at_calibration: 0.0,
+            features: ElongationFeatures::for_model(model),
+            elongation_at_calibration: None,
         })
+    }
+
+    /// True if the model reads a feature whose name starts with `prefix` (to check that the
+    /// recording has the signals it needs).
+    pub fn uses_features_starting_with(&self, prefix: &str) -> bool {
+        ELONGATION_FEATURES
+            .iter()
+            .enumerate()
+            .any(|(i, name)| name.starts_with(prefix) && self.model.uses(i))
     }
 
     /// The operator measured the tool length now: elongation counts from here. Takes effect on
     /// the next frame.
     pub fn reset_tool_calibration(&mut self) {
-        self.stator_at_calibration = None;
+        self.features.reset_tool_calibration();
+        self.elongation_at_calibration = None;
     }
 
-    /// µm since the tool calibration.
+    /// µm since the tool calibration (NaN until the model can be evaluated, e.g. before the
+    /// first room reading of a model that reads the room).
     #[inline]
-    pub fn update(
-        &mut self,
-        stator_C: f64,
-        speed_rpm: f64,
-        load_pct: f64,
-        ambient_C: f64,
-        dt: f64,
-    ) -> f64 {
-        let speed_krpm = speed_rpm.abs() / 1000.0;
-        let load = load_pct.abs();
-        let [fast, mid, slow] = &mut self.heat;
-        let [load_fast, load_mid, load_slow] = &mut self.load_heat;
-        let (fast, mid, slow) = (
-            fast.update(speed_krpm, dt),
-            mid.update(speed_krpm, dt),
-            slow.update(speed_krpm, dt),
-        );
-        let (load_fast, load_mid, load_slow) = (
-            load_fast.update(load, dt),
-            load_mid.update(load, dt),
-            load_slow.update(load, dt),
-        );
-        let first = self.stator_at_calibration.is_none();
-        let reference = *self.stator_at_calibration.get_or_insert(stator_C);
-        let value = self.model.eval(&[
-            1.0,
-            stator_C - reference,
-            speed_krpm,
-            load,
-            fast,
-            mid,
-            slow,
-            load_fast,
-            load_mid,
-            load_slow,
-            ambient_C,
-        ]);
-        if first {
-            self.elongation_at_calibration = value;
+    pub fn update(&mut self, inputs: &ElongationInputs, dt: f64) -> f64 {
+        let value = self.model.eval(self.features.update(inputs, dt));
+        if self.elongation_at_calibration.is_none() && value.is_finite() {
+            self.elongation_at_calibration = Some(value);
         }
-        value - self.elongation_at_calibration
+        value - self.elongation_at_calibration.unwrap_or(f64::NAN)
     }
 }
 
@@ -600,5 +674,74 @@ mod tests {
         let c1 = HeatAccumulator::c_bh_at_rate(900.0, 1.0);
         let c1000 = HeatAccumulator::c_bh_at_rate(900.0, 1000.0);
         assert!(((1.0 - c1000).powf(1000.0) - (1.0 - c1)).abs() < 1e-12);
+    }
+    /// The feature vector's layout is the one `ELONGATION_FEATURES` names: the heat terms
+    /// input-major over the time constants, then the room and its lags.
+    #[test]
+    fn elongation_feature_names_follow_the_inputs_and_time_constants() {
+        use super::super::models::{
+            AMBIENT_LAG_FEATURES, ELONGATION_HEAT_INPUTS, ELONGATION_TAU_NAMES,
+        };
+        let mut expected = vec!["const", "delta_stator", "speed", "load"]
+            .into_iter()
+            .map(String::from)
+            .collect::<Vec<_>>();
+        for input in ELONGATION_HEAT_INPUTS {
+            for tau in ELONGATION_TAU_NAMES {
+                expected.push(format!("{input}_{tau}"));
+            }
+        }
+        expected.push("ambient".into());
+        expected.extend(AMBIENT_LAG_FEATURES.map(String::from));
+        assert_eq!(ELONGATION_FEATURES, expected);
+        assert_eq!(ELONGATION_FEATURE_COUNT, ELONGATION_FEATURES.len());
+    }
+
+    /// ΔT and the room count from the calibration moment; each heat term follows the closed
+    /// form u·(1 − e^(−t/τ)) of a constant input; the coolant's cooling term is the coolant
+    /// times the stator's rise over the room; a reset counts from the next frame.
+    #[test]
+    fn elongation_features_count_from_calibration_and_accumulate_in_closed_form() {
+        let taus = [600.0, 1800.0, 5400.0, 16200.0];
+        let mut features = ElongationFeatures::new(taus);
+        let mut room = RoomLags::default();
+        let frame = |stator_C: f64, ambient_C: f64, room: &mut RoomLags| ElongationInputs {
+            stator_C,
+            speed_rpm: -3000.0,
+            load_pct: 40.0,
+            current_A: 20.0,
+            coolant_on: 1.0,
+            room: room.update(ambient_C, 1.0),
+        };
+        let first = *features.update(&frame(30.0, 21.0, &mut room), 0.0);
+        assert_eq!(first[1], 0.0, "ΔT at the calibration moment");
+        assert_eq!(
+            &first[28..],
+            &[0.0; 4],
+            "room terms at the calibration moment"
+        );
+        let mut last = first;
+        for _ in 0..3600 {
+            last = *features.update(&frame(30.0, 21.0, &mut room), 1.0);
+        }
+        let krpm: f64 = 3.0;
+        let drivers = [krpm, 40.0, krpm.powf(5.0 / 3.0), 4.0, 1.0, 9.0];
+        for (k, driver) in drivers.iter().enumerate() {
+            for (j, tau) in taus.iter().enumerate() {
+                let expected = driver * (1.0 - (-3600.0 / tau).exp());
+                let got = last[4 + 4 * k + j];
+                assert!(
+                    (got - expected).abs() < 1e-9 * driver.max(1.0),
+                    "{k},{j}: {got} vs {expected}"
+                );
+            }
+        }
+        let warmer = *features.update(&frame(33.0, 22.0, &mut room), 1.0);
+        assert_eq!(warmer[1], 3.0);
+        assert_eq!(warmer[28], 1.0);
+        features.reset_tool_calibration();
+        let reset = *features.update(&frame(33.0, 22.0, &mut room), 1.0);
+        assert_eq!(reset[1], 0.0);
+        assert_eq!(&reset[28..], &[0.0; 4]);
     }
 }
