@@ -24,7 +24,8 @@ fn five_axis_setup() -> (MachineProfile, Schema, Vec<Vec<f64>>) {
         profile.axes.insert(axis, x_profile);
     }
     profile.calibration = Some(calibration);
-    // A 5-axis frame layout: X, Y, Z, S, C servo columns plus the room and the depth of cut.
+    // A 5-axis frame layout: X, Y, Z, S, C servo columns plus the room, the coolant and the
+    // depth of cut.
     let source: Recording =
         simulate(TwinConfig::new(ScenarioKind::Production, Some(2.0), 4)).expect("twin runs");
     let mut names = vec!["time_s".to_string()];
@@ -43,6 +44,7 @@ fn five_axis_setup() -> (MachineProfile, Schema, Vec<Vec<f64>>) {
         }
     }
     names.push("ambient_C".into());
+    names.push("coolant_on".into());
     names.push("cut_depth_mm".into());
     let schema = Schema::new(names.clone(), "bench").expect("valid names");
     let frames = (0..source.len())
@@ -50,8 +52,8 @@ fn five_axis_setup() -> (MachineProfile, Schema, Vec<Vec<f64>>) {
             names
                 .iter()
                 .map(|name| {
-                    let from = if name == "time_s" || name == "ambient_C" || name == "cut_depth_mm"
-                    {
+                    let machine_level = ["time_s", "ambient_C", "coolant_on", "cut_depth_mm"];
+                    let from = if machine_level.contains(&name.as_str()) {
                         name.clone()
                     } else {
                         // Y, Z and C replay X's and S's signals.
