@@ -488,11 +488,11 @@ fn shipped_twin_profile_binds_to_twin_frames() {
     assert!(x.nut_C.is_finite() && x.straightness_v_zone_um() >= 0.0);
 }
 
-/// The shipped elongation model reads the coolant and the spindle current: a recording without
-/// `coolant_on` is refused with the column and the model that needs it named, not estimated
+/// The shipped elongation and straightness models read the coolant: a recording without
+/// `coolant_on` is refused with the column and the models that need it named, not estimated
 /// with a silent zero.
 #[test]
-fn estimate_names_the_coolant_column_the_elongation_model_needs() {
+fn estimate_names_the_coolant_column_and_every_model_that_needs_it() {
     let dir = tempfile::tempdir().unwrap();
     let rec = simulate(
         dir.path(),
@@ -537,8 +537,12 @@ fn estimate_names_the_coolant_column_the_elongation_model_needs() {
     ]);
     assert!(!run.status.success());
     let message = stderr(&run);
+    // The built-in profile's spindle elongation and X straightness both read the coolant;
+    // one message names both rather than the first one found.
     assert!(
-        message.contains("coolant_on") && message.contains("elongation"),
+        message.contains("coolant_on")
+            && message.contains("S elongation")
+            && message.contains("X straightness"),
         "{message}"
     );
 }

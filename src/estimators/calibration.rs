@@ -28,8 +28,9 @@ use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 
 use super::abnormality;
 use super::models::{
-    AMBIENT_LAG_FEATURES, AbnormalityModel, AxisModels, Calibration, ELONGATION_FEATURES,
-    ELONGATION_TAU_NAMES, ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES, LinearModel,
+    AMBIENT_LAG_FEATURES, AbnormalityModel, AxisModels, BED_LAG_FEATURES, Calibration,
+    ELONGATION_FEATURES, ELONGATION_TAU_NAMES, ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES,
+    LinearModel,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
@@ -386,6 +387,16 @@ pub fn calibrate(
         };
         let estimated = estimate_all(database)?;
         let estimated_experiments = estimate_all(experiments)?;
+        // The bed's state needs the coolant column and a nut model everywhere it is fitted.
+        let has_bed_state = database
+            .iter()
+            .chain(experiments)
+            .all(|r| r.try_column(COOLANT).is_some())
+            && estimated
+                .iter()
+                .chain(&estimated_experiments)
+                .flatten()
+                .all(|i| i.nut_C.is_finite());
         let (mut h, mut v) = (Vec::new(), Vec::new());
         for k in 1..=nodes {
             for (hv, out) in [("h", &mut h), ("v", &mut v)] {
@@ -403,7 +414,7 @@ pub fn calibrate(
                             Side::Database => &estimated[index],
                             Side::Experiment => &estimated_experiments[index],
                         };
-                        straightness_candidates(inputs, r, has_ambient)
+                        straightness_candidates(inputs, r, has_ambient, has_bed_state)
                     },
                     Scoring::Absolute,
                 )?;
@@ -1318,12 +1329,14 @@ fn estimated_temperatures(
 type Reading = fn(&StraightnessInputs) -> f64;
 
 /// The straightness candidates of one recording: the paper's cubics in the estimated
-/// temperatures, the same linear, and linear in the thermal states — each with and without the
+/// temperatures, the same linear, linear in the thermal states, and (`has_bed_state`) linear in
+/// the temperatures plus the bed's own state ([`BED_LAG_FEATURES`]) — each with and without the
 /// room.
 fn straightness_candidates(
     inputs: &[StraightnessInputs],
     recording: &Recording,
     has_ambient: bool,
+    has_bed_state: bool,
 ) -> Result<Vec<Columns>, CalibrationError> {
     let column = |name: &str, f: &dyn Fn(&StraightnessInputs) -> f64| {
         (name.to_string(), inputs.iter().map(f).collect::<Vec<f64>>())
@@ -1348,9 +1361,29 @@ fn straightness_candidates(
         column("back_heat", &|i| i.back_heat),
         column("back_load_heat", &|i| i.back_load_heat),
     ];
+    let bed_state: [Reading; 7] = [
+        |i| i.nut_C,
+        |i| i.motor_lags_C[0],
+        |i| i.motor_lags_C[1],
+        |i| i.back_lags_C[0],
+        |i| i.back_lags_C[1],
+        |i| i.coolant_lags[0],
+        |i| i.coolant_lags[1],
+    ];
+    let mut with_bed = linear.clone();
+    for (name, f) in BED_LAG_FEATURES.iter().zip(bed_state) {
+        with_bed.push(column(name, &f));
+    }
     let mut candidates = with_room_variant(cubic, recording, has_ambient)?;
     candidates.extend(with_room_and_lag_variants(linear, recording, has_ambient)?);
     candidates.extend(with_room_and_lag_variants(states, recording, has_ambient)?);
+    if has_bed_state {
+        candidates.extend(with_room_and_lag_variants(
+            with_bed,
+            recording,
+            has_ambient,
+        )?);
+    }
     Ok(candidates)
 }
 

@@ -47,8 +47,11 @@ pub const AMBIENT_LAG_FEATURES: [&str; 3] = [
 /// base, whose temperature the bending is measured against, follows the room slowly) — or, as
 /// the alternative calibration may choose, linear in the thermal states those temperatures are
 /// built from (stator temperature and the bearings' accumulated drag and load heat), which
-/// keeps the temperature models' errors out of the bending estimate. A fitted model uses a
-/// subset.
+/// keeps the temperature models' errors out of the bending estimate — or linear in the
+/// temperatures plus the bed's own state ([`BED_LAG_FEATURES`]): the bed and its base warm
+/// through the parts bolted to them (the motor flange and the back bearing at the ends, the nut
+/// through the screw and the table) and the coolant washes the bed, all slowly. A fitted model
+/// uses a subset.
 pub const STRAIGHTNESS_FEATURES: &[&str] = &[
     "const",
     "front",
@@ -69,6 +72,27 @@ pub const STRAIGHTNESS_FEATURES: &[&str] = &[
     "ambient_lag_30min",
     "ambient_lag_90min",
     "ambient_lag_270min",
+    "nut",
+    "motor_lag_30min",
+    "motor_lag_90min",
+    "back_lag_30min",
+    "back_lag_90min",
+    "coolant_lag_30min",
+    "coolant_lag_90min",
+];
+/// Time constants of the bed's state as the straightness models read it: the estimated motor
+/// and back-bearing temperatures and the coolant's on/off state through first-order lags.
+pub const BED_LAG_TAUS_S: [f64; 2] = [1800.0, 5400.0];
+/// The bed-state features of [`STRAIGHTNESS_FEATURES`]: the estimated nut temperature, then the
+/// motor, the back bearing and the coolant through each lag of [`BED_LAG_TAUS_S`].
+pub const BED_LAG_FEATURES: [&str; 7] = [
+    "nut",
+    "motor_lag_30min",
+    "motor_lag_90min",
+    "back_lag_30min",
+    "back_lag_90min",
+    "coolant_lag_30min",
+    "coolant_lag_90min",
 ];
 /// Spindle elongation (Eq. 15): ΔT of the stator since tool calibration, speed, load; heat
 /// accumulated over a fast, a middle, a slow and a long time constant (Eq. 10's form applied to
@@ -387,19 +411,43 @@ impl BoundModel {
     pub fn uses(&self, index: usize) -> bool {
         self.terms.iter().any(|(i, _)| *i == index)
     }
+
+    /// True if the model, bound to `features`, reads one whose name starts with `prefix` (to
+    /// check that a recording has the signals it needs).
+    pub fn uses_features_starting_with(&self, features: &[&str], prefix: &str) -> bool {
+        features
+            .iter()
+            .enumerate()
+            .any(|(i, name)| name.starts_with(prefix) && self.uses(i))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The estimators pass the room lags as the last three features of the heat and
-    /// straightness vectors, in the order of `AMBIENT_LAG_TAUS_S`; the names there must be the
-    /// same, or a fitted lag would bind to the wrong value.
+    /// The estimators pass the room lags as the last three features of the heat vector and,
+    /// followed by the bed's state, of the straightness vector, in the order of
+    /// `AMBIENT_LAG_TAUS_S` and `BED_LAG_TAUS_S`; the names there must be the same, or a fitted
+    /// lag would bind to the wrong value.
     #[test]
-    fn room_lag_features_end_the_heat_and_straightness_features_in_order() {
-        for features in [HEAT_FEATURES, STRAIGHTNESS_FEATURES] {
-            assert_eq!(features[features.len() - 3..], AMBIENT_LAG_FEATURES);
+    fn lag_features_sit_where_the_estimators_put_them() {
+        assert_eq!(
+            HEAT_FEATURES[HEAT_FEATURES.len() - 3..],
+            AMBIENT_LAG_FEATURES
+        );
+        let bed = STRAIGHTNESS_FEATURES.len() - BED_LAG_FEATURES.len();
+        assert_eq!(STRAIGHTNESS_FEATURES[bed..], BED_LAG_FEATURES);
+        assert_eq!(STRAIGHTNESS_FEATURES[bed - 3..bed], AMBIENT_LAG_FEATURES);
+        for (k, tau) in BED_LAG_TAUS_S.iter().enumerate() {
+            let minutes = format!("_{}min", tau / 60.0);
+            for name in [
+                &BED_LAG_FEATURES[1 + k],
+                &BED_LAG_FEATURES[3 + k],
+                &BED_LAG_FEATURES[5 + k],
+            ] {
+                assert!(name.ends_with(&minutes), "{name} is not the {minutes} lag");
+            }
         }
     }
 

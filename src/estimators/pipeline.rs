@@ -7,11 +7,11 @@ use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
-use super::models::{AMBIENT_LAG_FEATURES, AxisModels};
+use super::models::{AMBIENT_LAG_FEATURES, AxisModels, BED_LAG_TAUS_S};
 use super::streaming::{
-    ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator, RoomLags,
-    SpeedHeat, SpindleElongationEstimator, StraightnessEstimator, StraightnessInputs, TorqueSplit,
-    TorqueSplitEstimator, minimum_zone_straightness,
+    BedLags, ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator,
+    RoomLags, SettledLags, SpeedHeat, SpindleElongationEstimator, StraightnessEstimator,
+    StraightnessInputs, TorqueSplit, TorqueSplitEstimator, minimum_zone_straightness,
 };
 
 /// Why a pipeline could not be built.
@@ -161,6 +161,8 @@ struct FeedAxisPipeline {
     straightness_v: Option<StraightnessEstimator>,
     abnormality: Option<MotorAbnormalityEstimator>,
     stroke_mm: f64,
+    /// The bed's slow state the straightness models may read.
+    bed: BedLags,
     /// What the straightness models read this frame (kept for calibration).
     thermal_state: StraightnessInputs,
     estimate: FeedAxisEstimate,
@@ -182,6 +184,8 @@ pub struct EstimatorPipeline {
     coolant: Option<usize>,
     /// The room through the lags the heat and straightness models may read.
     room: RoomLags,
+    /// The coolant's on/off state through the lags the straightness models may read.
+    coolant_lags: SettledLags<2>,
     cut_depth: Option<usize>,
     previous_time: Option<f64>,
     notes: Vec<String>,
@@ -198,6 +202,9 @@ impl EstimatorPipeline {
         let coolant = schema.index_of(COOLANT);
         let cut_depth = schema.index_of(CUT_DEPTH);
         let mut notes = Vec::new();
+        // (column, what reads it) for model inputs the frames lack: gathered over every axis so
+        // that one error names everything a missing column leaves without its input.
+        let mut unmet: Vec<(String, String)> = Vec::new();
         let mut feed = Vec::new();
         let mut spindles = Vec::new();
         for (&axis, axis_profile) in &profile.axes {
@@ -264,6 +271,28 @@ impl EstimatorPipeline {
                                 .map_err(model_err(what))
                         }
                     };
+                    let straightness_h =
+                        straightness(&models.straightness_h, "horizontal straightness")?;
+                    let straightness_v =
+                        straightness(&models.straightness_v, "vertical straightness")?;
+                    let reads = |prefix: &str| {
+                        [&straightness_h, &straightness_v].iter().any(|e| {
+                            e.as_ref()
+                                .is_some_and(|e| e.uses_features_starting_with(prefix))
+                        })
+                    };
+                    if reads("coolant") && coolant.is_none() {
+                        unmet.push((COOLANT.into(), format!("the {axis} straightness models")));
+                    }
+                    if reads("nut") && models.nut_temp.is_none() {
+                        return Err(PipelineError::Model {
+                            axis,
+                            what: "straightness",
+                            message: "the models read the nut temperature, but the profile has \
+                                      no nut temperature model"
+                                .into(),
+                        });
+                    }
                     feed.push(FeedAxisPipeline {
                         axis,
                         channels,
@@ -278,19 +307,14 @@ impl EstimatorPipeline {
                         back: thermal(&models.back_bearing_temp, "back bearing temperature")?,
                         nut: thermal(&models.nut_temp, "nut temperature")?,
                         split,
-                        straightness_h: straightness(
-                            &models.straightness_h,
-                            "horizontal straightness",
-                        )?,
-                        straightness_v: straightness(
-                            &models.straightness_v,
-                            "vertical straightness",
-                        )?,
+                        straightness_h,
+                        straightness_v,
                         abnormality,
                         stroke_mm: axis_profile
                             .screw
                             .as_ref()
                             .map_or(f64::NAN, |s| s.stroke_mm),
+                        bed: BedLags::default(),
                         thermal_state: StraightnessInputs::default(),
                         estimate: {
                             let mut estimate = FeedAxisEstimate::default();
@@ -320,12 +344,7 @@ impl EstimatorPipeline {
                         ];
                         for (prefix, column, index) in needs {
                             if e.uses_features_starting_with(prefix) && index.is_none() {
-                                return Err(PipelineError::MissingColumn {
-                                    column,
-                                    purpose: format!(
-                                        "the {axis} elongation model, which was fitted with it"
-                                    ),
-                                });
+                                unmet.push((column, format!("the {axis} elongation model")));
                             }
                         }
                     }
@@ -344,12 +363,25 @@ impl EstimatorPipeline {
                 }
             }
         }
+        if let Some((column, _)) = unmet.first() {
+            let column = column.clone();
+            let readers: Vec<&str> = unmet
+                .iter()
+                .filter(|(c, _)| *c == column)
+                .map(|(_, reader)| reader.as_str())
+                .collect();
+            return Err(PipelineError::MissingColumn {
+                purpose: format!("{}: they were fitted with it", readers.join(" and ")),
+                column,
+            });
+        }
         Ok(EstimatorPipeline {
             feed,
             spindles,
             ambient,
             coolant,
             room: RoomLags::default(),
+            coolant_lags: SettledLags::new(BED_LAG_TAUS_S),
             cut_depth,
             previous_time: None,
             notes,
@@ -383,6 +415,8 @@ impl EstimatorPipeline {
         self.previous_time = Some(t);
         let ambient = self.ambient.map_or(f64::NAN, |i| frame[i]);
         let room = self.room.update(ambient, dt);
+        let coolant = self.coolant.map_or(f64::NAN, |i| frame[i]);
+        let coolant_lags = self.coolant_lags.update(coolant, dt);
         let cutting = self.cut_depth.is_some_and(|i| frame[i] > 0.0);
         let sample = |c: &AxisChannels, stroke_fraction: f64| TorqueSample {
             time_s: t,
@@ -426,6 +460,8 @@ impl EstimatorPipeline {
                 };
                 let (front_heat, front_load_heat) = states(&axis.front);
                 let (back_heat, back_load_heat) = states(&axis.back);
+                let (motor_lags_C, back_lags_C) =
+                    axis.bed.update(e.motor_flange_C, e.back_bearing_C, dt);
                 let inputs = StraightnessInputs {
                     front_C: e.front_bearing_C,
                     back_C: e.back_bearing_C,
@@ -437,6 +473,10 @@ impl EstimatorPipeline {
                     front_load_heat,
                     back_heat,
                     back_load_heat,
+                    nut_C: e.nut_C,
+                    motor_lags_C,
+                    back_lags_C,
+                    coolant_lags,
                 };
                 axis.thermal_state = inputs;
                 for (estimator, out) in [
@@ -450,7 +490,6 @@ impl EstimatorPipeline {
                 }
             }
         }
-        let coolant = self.coolant.map_or(f64::NAN, |i| frame[i]);
         for spindle in &mut self.spindles {
             let c = spindle.channels;
             let load = c.load.map_or(0.0, |i| frame[i]);

@@ -6,8 +6,8 @@
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
 use super::models::{
-    AMBIENT_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel, FLANGE_FEATURES,
-    HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
+    AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
+    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
 };
 
 /// rpm → rad/s.
@@ -75,22 +75,56 @@ pub struct Room {
     pub lags_C: [f64; 3],
 }
 
-/// Follows the room through the slow lags of the machine's mass ([`AMBIENT_LAG_TAUS_S`]).
-///
-/// The lags start settled at the first room reading: a machine that has stood in its room is
-/// at the room's temperature, so starting them at zero would invent a warm-up of the bed. A
-/// missing room reading (NaN) leaves them where they were rather than poisoning them.
+/// A signal through first-order lags of fixed time constants that start settled at its first
+/// finite reading: a machine that has stood still is at rest with its surroundings, so starting
+/// the lags at zero would invent a warm-up. A missing reading (NaN) leaves them where they were
+/// rather than poisoning them (and reads NaN until the first finite one).
+#[derive(Debug, Clone)]
+pub struct SettledLags<const N: usize> {
+    lags: [HeatAccumulator; N],
+    started: bool,
+}
+
+impl<const N: usize> SettledLags<N> {
+    /// Lags of time constants `taus_s`, not yet started.
+    pub fn new(taus_s: [f64; N]) -> Self {
+        SettledLags {
+            lags: taus_s.map(HeatAccumulator::new),
+            started: false,
+        }
+    }
+
+    /// Takes one reading over `dt` seconds; returns the signal through each lag.
+    #[inline]
+    pub fn update(&mut self, value: f64, dt: f64) -> [f64; N] {
+        if !value.is_finite() {
+            return if self.started {
+                self.lags.each_ref().map(HeatAccumulator::value)
+            } else {
+                [f64::NAN; N]
+            };
+        }
+        if !self.started {
+            self.started = true;
+            for lag in &mut self.lags {
+                lag.settle_at(value);
+            }
+        }
+        self.lags.each_mut().map(|lag| lag.update(value, dt))
+    }
+}
+
+/// Follows the room through the slow lags of the machine's mass ([`AMBIENT_LAG_TAUS_S`]),
+/// settled at the first room reading ([`SettledLags`]).
 #[derive(Debug, Clone)]
 pub struct RoomLags {
-    lags: [HeatAccumulator; 3],
-    started: bool,
+    lags: SettledLags<3>,
 }
 
 impl Default for RoomLags {
     fn default() -> Self {
         RoomLags {
-            lags: AMBIENT_LAG_TAUS_S.map(HeatAccumulator::new),
-            started: false,
+            lags: SettledLags::new(AMBIENT_LAG_TAUS_S),
         }
     }
 }
@@ -99,27 +133,42 @@ impl RoomLags {
     /// Takes one room reading over `dt` seconds.
     #[inline]
     pub fn update(&mut self, ambient_C: f64, dt: f64) -> Room {
-        if !ambient_C.is_finite() {
-            let lags_C = if self.started {
-                self.lags.each_ref().map(HeatAccumulator::value)
-            } else {
-                [f64::NAN; 3]
-            };
-            return Room {
-                ambient_C: f64::NAN,
-                lags_C,
-            };
-        }
-        if !self.started {
-            self.started = true;
-            for lag in &mut self.lags {
-                lag.settle_at(ambient_C);
-            }
-        }
+        let lags_C = self.lags.update(ambient_C, dt);
         Room {
-            ambient_C,
-            lags_C: self.lags.each_mut().map(|lag| lag.update(ambient_C, dt)),
+            ambient_C: if ambient_C.is_finite() {
+                ambient_C
+            } else {
+                f64::NAN
+            },
+            lags_C,
         }
+    }
+}
+
+/// The bed's slow state as the straightness models read it: the estimated motor and
+/// back-bearing temperatures through the lags of [`BED_LAG_TAUS_S`], settled at their first
+/// values ([`SettledLags`]). The coolant's lags are the machine's, kept by the pipeline.
+#[derive(Debug, Clone)]
+pub struct BedLags {
+    motor: SettledLags<2>,
+    back: SettledLags<2>,
+}
+
+impl Default for BedLags {
+    fn default() -> Self {
+        BedLags {
+            motor: SettledLags::new(BED_LAG_TAUS_S),
+            back: SettledLags::new(BED_LAG_TAUS_S),
+        }
+    }
+}
+
+impl BedLags {
+    /// Takes one frame's estimated motor and back-bearing temperatures over `dt` seconds;
+    /// returns them through each lag, °C.
+    #[inline]
+    pub fn update(&mut self, motor_C: f64, back_C: f64, dt: f64) -> ([f64; 2], [f64; 2]) {
+        (self.motor.update(motor_C, dt), self.back.update(back_C, dt))
     }
 }
 
@@ -325,6 +374,15 @@ pub struct StraightnessInputs {
     pub back_heat: f64,
     /// Back bearing's accumulated load heat.
     pub back_load_heat: f64,
+    /// Estimated nut temperature, °C (NaN without a nut model).
+    pub nut_C: f64,
+    /// The estimated motor temperature through the lags of [`BED_LAG_TAUS_S`], °C.
+    pub motor_lags_C: [f64; 2],
+    /// The estimated back-bearing temperature through the lags of [`BED_LAG_TAUS_S`], °C.
+    pub back_lags_C: [f64; 2],
+    /// The coolant's on/off state (0–1) through the lags of [`BED_LAG_TAUS_S`] (NaN when the
+    /// recording has no coolant column).
+    pub coolant_lags: [f64; 2],
 }
 
 /// Largest number of straightness nodes an axis may have.
@@ -390,10 +448,25 @@ impl StraightnessEstimator {
             i.ambient_lags_C[0],
             i.ambient_lags_C[1],
             i.ambient_lags_C[2],
+            i.nut_C,
+            i.motor_lags_C[0],
+            i.motor_lags_C[1],
+            i.back_lags_C[0],
+            i.back_lags_C[1],
+            i.coolant_lags[0],
+            i.coolant_lags[1],
         ];
         for (slot, model) in out.iter_mut().zip(&self.models) {
             *slot = model.eval(&features);
         }
+    }
+
+    /// True if a node's model reads a feature whose name starts with `prefix` (to check that
+    /// the recording and the profile provide what it needs).
+    pub fn uses_features_starting_with(&self, prefix: &str) -> bool {
+        self.models
+            .iter()
+            .any(|m| m.uses_features_starting_with(STRAIGHTNESS_FEATURES, prefix))
     }
 
     /// Node positions along the stroke, mm.
@@ -565,10 +638,8 @@ impl SpindleElongationEstimator {
     /// True if the model reads a feature whose name starts with `prefix` (to check that the
     /// recording has the signals it needs).
     pub fn uses_features_starting_with(&self, prefix: &str) -> bool {
-        ELONGATION_FEATURES
-            .iter()
-            .enumerate()
-            .any(|(i, name)| name.starts_with(prefix) && self.model.uses(i))
+        self.model
+            .uses_features_starting_with(ELONGATION_FEATURES, prefix)
     }
 
     /// The operator measured the tool length now: elongation counts from here. Takes effect on
@@ -643,6 +714,24 @@ mod tests {
         assert_eq!(gap.lags_C, last.lags_C);
         assert!(room.update(22.0, 1.0).lags_C.iter().all(|v| v.is_finite()));
         assert!(RoomLags::default().update(f64::NAN, 1.0).lags_C[0].is_nan());
+    }
+
+    /// The bed's lags start at the first estimated temperatures (a bed at rest is as warm as
+    /// what is bolted to it) and follow the motor and the back bearing separately, each with
+    /// the closed form of a first-order lag.
+    #[test]
+    fn bed_lags_start_at_the_first_estimates_and_follow_each_part() {
+        let mut bed = BedLags::default();
+        assert_eq!(bed.update(25.0, 21.0, 0.0), ([25.0; 2], [21.0; 2]));
+        let mut last = ([0.0; 2], [0.0; 2]);
+        for _ in 0..3600 {
+            last = bed.update(30.0, 21.0, 1.0);
+        }
+        for (lag, tau) in last.0.iter().zip(BED_LAG_TAUS_S) {
+            let expected = 30.0 - 5.0 * (-3600.0 / tau).exp();
+            assert!((lag - expected).abs() < 1e-9, "{lag} against {expected}");
+        }
+        assert_eq!(last.1, [21.0; 2]);
     }
 
     /// Palmgren's load-free torque ∝ (ν·n)^(2/3), so its heat ∝ |n|^(5/3): doubling the speed
