@@ -28,14 +28,14 @@ use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 
 use super::abnormality;
 use super::models::{
-    AMBIENT_LAG_FEATURES, AbnormalityModel, AxisModels, BED_LAG_FEATURES, Calibration,
-    ELONGATION_FEATURES, ELONGATION_TAU_NAMES, ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES,
-    LinearModel,
+    AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
+    Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES, ElongationModel, HeatModel,
+    IDEAL_TORQUE_FEATURES, LinearModel, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
-    ElongationFeatures, ElongationInputs, HeatAccumulator, HeatInputs, RoomLags, SpeedHeat,
-    StraightnessInputs, TorqueSplitEstimator, heat_inputs,
+    ElongationFeatures, ElongationInputs, HeatAccumulator, HeatInputs, RoomLags, SettledLags,
+    SpeedHeat, StraightnessInputs, TorqueSplitEstimator, heat_inputs,
 };
 
 /// Candidate heat-accumulation time constants, s.
@@ -281,11 +281,18 @@ pub fn calibrate(
                         experiments,
                         &target,
                         &|_, _, r| {
-                            let base = vec![(
-                                "stator".to_string(),
-                                r.column_for(&stator, "the motor flange model")?.to_vec(),
-                            )];
-                            with_room_variant(base, r, has_ambient)
+                            let stator = r.column_for(&stator, "the motor flange model")?;
+                            let base = vec![("stator".to_string(), stator.to_vec())];
+                            let mut lagged = base.clone();
+                            for (name, column) in STATOR_LAG_FEATURES
+                                .iter()
+                                .zip(settled_lag_columns(r.time(), stator, STATOR_LAG_TAUS_S))
+                            {
+                                lagged.push((name.to_string(), column));
+                            }
+                            let mut candidates = with_room_variant(base, r, has_ambient)?;
+                            candidates.extend(with_room_and_lag_variants(lagged, r, has_ambient)?);
+                            Ok(candidates)
                         },
                         Scoring::Absolute,
                     )?;
@@ -984,20 +991,31 @@ fn component_heat_inputs(
 /// The room through the lags of [`AMBIENT_LAG_TAUS_S`] over a recording, exactly as the
 /// pipeline's [`RoomLags`] follows it: one column per lag.
 fn ambient_lag_columns(recording: &Recording) -> Result<[Vec<f64>; 3], CalibrationError> {
-    let ambient = recording.column(AMBIENT)?;
-    let time = recording.time();
-    let mut lags = RoomLags::default();
-    let mut columns: [Vec<f64>; 3] = Default::default();
+    Ok(settled_lag_columns(
+        recording.time(),
+        recording.column(AMBIENT)?,
+        AMBIENT_LAG_TAUS_S,
+    ))
+}
+
+/// `values` through first-order lags of `taus_s` over the recording's time, exactly as the
+/// estimators' [`SettledLags`] follow a signal: one column per lag.
+fn settled_lag_columns<const N: usize>(
+    time: &[f64],
+    values: &[f64],
+    taus_s: [f64; N],
+) -> [Vec<f64>; N] {
+    let mut lags = SettledLags::new(taus_s);
+    let mut columns: [Vec<f64>; N] = std::array::from_fn(|_| Vec::with_capacity(values.len()));
     let mut previous = time.first().copied().unwrap_or(0.0);
-    for (&t, &a) in time.iter().zip(ambient) {
+    for (&t, &v) in time.iter().zip(values) {
         let dt = (t - previous).max(0.0);
         previous = t;
-        let room = lags.update(a, dt);
-        for (column, value) in columns.iter_mut().zip(room.lags_C) {
+        for (column, value) in columns.iter_mut().zip(lags.update(v, dt)) {
             column.push(value);
         }
     }
-    Ok(columns)
+    columns
 }
 
 /// Accumulates `input` with time constant `tau_s` over the recording's own time steps.

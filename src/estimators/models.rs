@@ -12,8 +12,27 @@ use serde::{Deserialize, Serialize};
 
 use crate::signal::AxisId;
 
-/// Motor flange temperature (Eq. 7): constant, stator temperature, room temperature.
-pub const FLANGE_FEATURES: &[&str] = &["const", "stator", "ambient"];
+/// Motor flange temperature (Eq. 7): constant, stator temperature, room temperature — and, as
+/// calibration may choose, the stator through the lags of [`STATOR_LAG_TAUS_S`] (the flange is
+/// a mass of its own that the stator's heat reaches through the housing, so it follows the
+/// stator late, not at once) and the room through the lags of [`AMBIENT_LAG_TAUS_S`]. A fitted
+/// model uses a subset.
+pub const FLANGE_FEATURES: &[&str] = &[
+    "const",
+    "stator",
+    "ambient",
+    "stator_lag_5min",
+    "stator_lag_15min",
+    "stator_lag_45min",
+    "ambient_lag_30min",
+    "ambient_lag_90min",
+    "ambient_lag_270min",
+];
+/// Time constants of the stator lags the motor flange model may read.
+pub const STATOR_LAG_TAUS_S: [f64; 3] = [300.0, 900.0, 2700.0];
+/// The feature names of [`STATOR_LAG_TAUS_S`], in the same order.
+pub const STATOR_LAG_FEATURES: [&str; 3] =
+    ["stator_lag_5min", "stator_lag_15min", "stator_lag_45min"];
 /// Torque ratios (Eq. 8): a cubic in the motor torque.
 pub const RATIO_FEATURES: &[&str] = &["const", "torque", "torque^2", "torque^3"];
 /// Bearing and nut temperature (Eqs. 9–12): constant, stator (the initial temperature),

@@ -436,8 +436,8 @@ impl EstimatorPipeline {
             }
             let speed = SpeedHeat::of(frame[c.speed]);
             let e = &mut axis.estimate;
-            if let Some(flange) = &axis.flange {
-                e.motor_flange_C = flange.update(stator, ambient);
+            if let Some(flange) = &mut axis.flange {
+                e.motor_flange_C = flange.update(stator, &room, dt);
             }
             if let Some(split) = &axis.split {
                 e.split = split.update(torque);

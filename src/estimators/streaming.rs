@@ -7,7 +7,8 @@
 
 use super::models::{
     AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
-    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
+    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STATOR_LAG_TAUS_S,
+    STRAIGHTNESS_FEATURES,
 };
 
 /// rpm → rad/s.
@@ -172,10 +173,13 @@ impl BedLags {
     }
 }
 
-/// Motor flange temperature from the stator temperature (Eq. 7).
+/// Motor flange temperature from the stator temperature (Eq. 7), and, where the model reads
+/// them, the stator through the lags of [`STATOR_LAG_TAUS_S`] (settled at the first stator
+/// reading) and the room through its lags.
 #[derive(Debug, Clone)]
 pub struct MotorFlangeEstimator {
     model: BoundModel,
+    stator_lags: SettledLags<3>,
 }
 
 impl MotorFlangeEstimator {
@@ -183,13 +187,25 @@ impl MotorFlangeEstimator {
     pub fn new(model: &LinearModel) -> Result<Self, String> {
         Ok(MotorFlangeEstimator {
             model: BoundModel::bind(model, FLANGE_FEATURES)?,
+            stator_lags: SettledLags::new(STATOR_LAG_TAUS_S),
         })
     }
 
-    /// °C from the stator and room temperatures.
+    /// °C from one frame's stator temperature over `dt` seconds and the room.
     #[inline]
-    pub fn update(&self, stator_C: f64, ambient_C: f64) -> f64 {
-        self.model.eval(&[1.0, stator_C, ambient_C])
+    pub fn update(&mut self, stator_C: f64, room: &Room, dt: f64) -> f64 {
+        let lags = self.stator_lags.update(stator_C, dt);
+        self.model.eval(&[
+            1.0,
+            stator_C,
+            room.ambient_C,
+            lags[0],
+            lags[1],
+            lags[2],
+            room.lags_C[0],
+            room.lags_C[1],
+            room.lags_C[2],
+        ])
     }
 }
 
@@ -714,6 +730,36 @@ mod tests {
         assert_eq!(gap.lags_C, last.lags_C);
         assert!(room.update(22.0, 1.0).lags_C.iter().all(|v| v.is_finite()));
         assert!(RoomLags::default().update(f64::NAN, 1.0).lags_C[0].is_nan());
+    }
+
+    /// A flange model that reads the stator through its 15 min lag starts at the stator's
+    /// first reading and follows a 10 K step of the stator as a first-order lag does, while the
+    /// static term follows at once.
+    #[test]
+    fn the_motor_flange_follows_the_stator_through_its_lag() {
+        let model = LinearModel {
+            equation: String::new(),
+            terms: vec!["const".into(), "stator".into(), "stator_lag_15min".into()],
+            coefficients: vec![1.0, 0.25, 0.5],
+            r2: 1.0,
+            n: 10,
+            f_statistic: 1.0,
+            f_p_value: 0.0,
+            rmse: 0.0,
+        };
+        let mut flange = MotorFlangeEstimator::new(&model).unwrap();
+        let mut room = RoomLags::default();
+        let first = flange.update(20.0, &room.update(20.0, 0.0), 0.0);
+        assert!((first - (1.0 + 0.25 * 20.0 + 0.5 * 20.0)).abs() < 1e-12);
+        let mut last = first;
+        for _ in 0..900 {
+            last = flange.update(30.0, &room.update(20.0, 1.0), 1.0);
+        }
+        let lag = 30.0 - 10.0 * (-1.0f64).exp();
+        assert!(
+            (last - (1.0 + 0.25 * 30.0 + 0.5 * lag)).abs() < 1e-9,
+            "{last}"
+        );
     }
 
     /// The bed's lags start at the first estimated temperatures (a bed at rest is as warm as
