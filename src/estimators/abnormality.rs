@@ -484,14 +484,8 @@ mod tests {
     fn model(rmse: f64) -> AbnormalityModel {
         AbnormalityModel {
             ideal_torque: LinearModel {
-                equation: String::new(),
-                terms: vec!["const".into(), "direction".into(), "churning".into()],
-                coefficients: vec![0.0, 0.5, 0.01],
-                r2: 0.9,
-                n: 1000,
-                f_statistic: 1.0,
-                f_p_value: 0.0,
                 rmse,
+                ..LinearModel::with_terms(&["const", "direction", "churning"], &[0.0, 0.5, 0.01])
             },
         }
     }

@@ -212,6 +212,24 @@ pub struct LinearModel {
     pub rmse: f64,
 }
 
+#[cfg(test)]
+impl LinearModel {
+    /// A model with these terms and coefficients and placeholder fit statistics, for tests of
+    /// the estimators that evaluate it.
+    pub(crate) fn with_terms(terms: &[&str], coefficients: &[f64]) -> LinearModel {
+        LinearModel {
+            equation: String::new(),
+            terms: terms.iter().map(|s| s.to_string()).collect(),
+            coefficients: coefficients.to_vec(),
+            r2: 1.0,
+            n: 10,
+            f_statistic: 1.0,
+            f_p_value: 0.0,
+            rmse: 0.0,
+        }
+    }
+}
+
 /// A heat-accumulation model (Eqs. 10–12): H ← H(1 − C_BH) + C_BH·H′ for each heat input H′
 /// (drag ∝ |n|, load ∝ |τ·n|, churning ∝ |n|^(5/3), all with the one τ), then a linear model
 /// over `HEAT_FEATURES`.
@@ -471,16 +489,7 @@ mod tests {
     }
 
     fn model(terms: &[&str], coefficients: &[f64]) -> LinearModel {
-        LinearModel {
-            equation: String::new(),
-            terms: terms.iter().map(|s| s.to_string()).collect(),
-            coefficients: coefficients.to_vec(),
-            r2: 1.0,
-            n: 10,
-            f_statistic: 1.0,
-            f_p_value: 0.0,
-            rmse: 0.0,
-        }
+        LinearModel::with_terms(terms, coefficients)
     }
 
     #[test]

@@ -737,16 +737,8 @@ mod tests {
     /// static term follows at once.
     #[test]
     fn the_motor_flange_follows_the_stator_through_its_lag() {
-        let model = LinearModel {
-            equation: String::new(),
-            terms: vec!["const".into(), "stator".into(), "stator_lag_15min".into()],
-            coefficients: vec![1.0, 0.25, 0.5],
-            r2: 1.0,
-            n: 10,
-            f_statistic: 1.0,
-            f_p_value: 0.0,
-            rmse: 0.0,
-        };
+        let model =
+            LinearModel::with_terms(&["const", "stator", "stator_lag_15min"], &[1.0, 0.25, 0.5]);
         let mut flange = MotorFlangeEstimator::new(&model).unwrap();
         let mut room = RoomLags::default();
         let first = flange.update(20.0, &room.update(20.0, 0.0), 0.0);
