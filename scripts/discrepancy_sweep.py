@@ -11,12 +11,22 @@ the CLI, and sorts the outcomes by how large the concealed effect is on that col
 - large (RMS at least 3 σ): the concealed effect should be named first;
 - in between: listed, not scored (a small effect may or may not be found).
 
-Usage (after `cargo build --release`; about 3 minutes on 2 cores):
+With `--pairs` it conceals every pair of the ten effects at once on the same columns and scores
+each effect of the pair by its own size there (from the single sweep's runs):
 
-    python3 scripts/discrepancy_sweep.py [OUT_DIR] [SEEDS]      (default /tmp/sweep 301,302)
+- both large: both must be named (in any order);
+- one large, the other absent: the large one must be named and the absent one must not;
+- otherwise: listed, not scored.
+
+Usage (after `cargo build --release`; about 3 minutes on 2 cores, 12 with `--pairs`, which runs
+the single sweep's simulations first if they are missing):
+
+    python3 scripts/discrepancy_sweep.py [--pairs] [OUT_DIR] [SEEDS]   (default /tmp/sweep 301,302)
 """
 import concurrent.futures
 import csv
+import functools
+import itertools
 import json
 import math
 import os
@@ -45,8 +55,8 @@ def simulate(path, seed, without=None, noise=None, settings=()):
         return
     cmd = [BINARY, "simulate", "--scenario", "production", "--hours", HOURS, "--seed", str(seed),
            "-o", path]
-    if without:
-        cmd += ["--without", without]
+    for effect in [without] if isinstance(without, str) else without or []:
+        cmd += ["--without", effect]
     if noise is not None:
         cmd += ["--noise", str(noise)]
     for s in settings:
@@ -54,12 +64,22 @@ def simulate(path, seed, without=None, noise=None, settings=()):
     subprocess.run(cmd, check=True, capture_output=True)
 
 
-def column(path, name):
+@functools.lru_cache(maxsize=3)
+def columns(path):
+    """Every target column of a recording (read once: the pair sweep asks for each many times)."""
     with open(path) as f:
         rows = csv.reader(line for line in f if not line.startswith("#"))
         header = next(rows)
-        i = header.index(name)
-        return [float(r[i]) for r in rows]
+        index = [header.index(t) for t in TARGETS]
+        values = [[] for _ in TARGETS]
+        for r in rows:
+            for v, i in zip(values, index):
+                v.append(float(r[i]))
+    return dict(zip(TARGETS, values))
+
+
+def column(path, name):
+    return columns(path)[name]
 
 
 def rms(values):
@@ -67,32 +87,110 @@ def rms(values):
     return math.sqrt(sum((v - mean) ** 2 for v in values) / len(values))
 
 
-def one_case(out, effect, target, seed):
+def analyse(d, target):
+    """The CLI's report on one (sim, real) pair, or its error message."""
+    report_path = os.path.join(d, target.replace("#", "_") + ".json")
+    if not os.path.exists(report_path):
+        run = subprocess.run([BINARY, "discrepancy", "--sim", f"{d}/sim.csv", "--real",
+                              f"{d}/real.csv", "--target", target, "--json", report_path],
+                             capture_output=True, text=True)
+        if run.returncode != 0:
+            return None, run.stderr.strip()
+    return json.load(open(report_path)), None
+
+
+def single_runs(out, effect, seed):
     d = os.path.join(out, f"{effect}-{seed}")
     os.makedirs(d, exist_ok=True)
     extra = REAL_ONLY.get(effect, [])
     simulate(f"{d}/sim.csv", seed, without=effect, noise=0)
     simulate(f"{d}/real.csv", seed, settings=extra)
     simulate(f"{d}/clean.csv", seed, noise=0, settings=extra)
-    report_path = os.path.join(d, target.replace("#", "_") + ".json")
-    run = subprocess.run([BINARY, "discrepancy", "--sim", f"{d}/sim.csv", "--real",
-                          f"{d}/real.csv", "--target", target, "--json", report_path],
-                         capture_output=True, text=True)
-    if run.returncode != 0:
-        return effect, target, seed, None, run.stderr.strip(), 0.0
-    report = json.load(open(report_path))
+    return d
+
+
+def effect_size(out, effect, target, seed):
+    """The concealed effect's RMS on the target over the instrument's white-noise σ."""
+    d = single_runs(out, effect, seed)
     sim, real, clean = (column(f"{d}/{n}.csv", target) for n in ("sim", "real", "clean"))
     effect_rms = rms([c - s for c, s in zip(clean, sim)])
     # The instrument's white noise, from successive differences of (real − clean).
     noise = [r - c for r, c in zip(real, clean)]
     sigma = math.sqrt(sum((b - a) ** 2 for a, b in zip(noise, noise[1:])) / (2 * len(noise) - 2))
+    return effect_rms / max(sigma, 1e-12)
+
+
+def one_case(out, effect, target, seed):
+    d = single_runs(out, effect, seed)
+    report, error = analyse(d, target)
+    if report is None:
+        return effect, target, seed, None, error, 0.0
     named = [f["physics"] for f in report["findings"]]
-    return effect, target, seed, report["verdict"], named, effect_rms / max(sigma, 1e-12)
+    return effect, target, seed, report["verdict"], named, effect_size(out, effect, target, seed)
+
+
+def pair_case(out, pair, target, seed):
+    a, b = pair
+    d = os.path.join(out, f"{a}+{b}-{seed}")
+    os.makedirs(d, exist_ok=True)
+    extra = REAL_ONLY.get(a, []) + REAL_ONLY.get(b, [])
+    simulate(f"{d}/sim.csv", seed, without=[a, b], noise=0)
+    simulate(f"{d}/real.csv", seed, settings=extra)
+    report, error = analyse(d, target)
+    if report is None:
+        return None, error, []
+    return report, None, [f["physics"] for f in report["findings"]]
+
+
+def pairs_main(out, seeds):
+    cases = [(p, t, s) for p in itertools.combinations(EFFECTS, 2) for t in TARGETS
+             for s in seeds]
+    # Each effect's own size, read effect by effect so that each recording is parsed once.
+    size = {(e, t, s): effect_size(out, e, t, s) for e in EFFECTS for s in seeds for t in TARGETS}
+    both = [0, 0]
+    one = [0, 0]
+    print("| outcome | concealed | target | seed | sizes / σ | named | indistinguishable |")
+    print("|---|---|---|---|---|---|---|")
+    with concurrent.futures.ThreadPoolExecutor(2) as pool:
+        for (pair, target, seed), (report, error, named) in zip(cases, pool.map(
+                lambda c: pair_case(out, *c), cases)):
+            label = " + ".join(f"`{e}`" for e in pair)
+            if report is None:
+                print(f"| error | {label} | `{target}` | {seed} | | {error} | |")
+                continue
+            sizes = [size[(e, target, seed)] for e in pair]
+            large = [e for e, z in zip(pair, sizes) if z >= LARGE]
+            absent = [e for e, z in zip(pair, sizes) if z < ABSENT]
+            if len(large) == 2:
+                both[0] += 1
+                ok = all(e in named for e in pair)
+                both[1] += ok
+                outcome = "both named" if ok else "**not both**"
+            elif len(large) == 1 and len(absent) == 1:
+                one[0] += 1
+                ok = large[0] in named and absent[0] not in named
+                one[1] += ok
+                outcome = "the large one" if ok else "**missed**"
+            else:
+                continue
+            if not ok:
+                alike = sorted({a for f in report["findings"]
+                                for a in f.get("indistinguishable_from") or []})
+                print(f"| {outcome} | {label} | `{target}` | {seed} | "
+                      f"{' / '.join(f'{z:.1f}' for z in sizes)} | {', '.join(named) or '—'} "
+                      f"| {', '.join(alike) or '—'} |")
+    print(f"\nboth large (each ≥ {LARGE} σ alone): {both[1]}/{both[0]} both named")
+    print(f"one large, one absent (< {ABSENT} σ): {one[1]}/{one[0]} the large one named "
+          f"and the absent one not")
 
 
 def main():
-    out = sys.argv[1] if len(sys.argv) > 1 else "/tmp/sweep"
-    seeds = [int(s) for s in (sys.argv[2] if len(sys.argv) > 2 else "301,302").split(",")]
+    args = [a for a in sys.argv[1:] if a != "--pairs"]
+    out = args[0] if args else "/tmp/sweep"
+    seeds = [int(s) for s in (args[1] if len(args) > 1 else "301,302").split(",")]
+    if "--pairs" in sys.argv:
+        pairs_main(out, seeds)
+        return
     cases = [(e, t, s) for e in EFFECTS for t in TARGETS for s in seeds]
     absent = [0, 0]
     large = [0, 0]

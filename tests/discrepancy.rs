@@ -1223,6 +1223,41 @@ fn a_gain_and_offset_miscalibration_is_calibration_not_physics() {
     }
 }
 
+/// A sensor drifting on a part that warms through the run resembles the simulated target
+/// scaled up: with the motor's copper loss also missing from the simulation, a "calibration"
+/// of real ≈ −67 °C + 4.5 × sim absorbed the whole drift and the report said consistent (the
+/// pair sweep of docs/discrepancy.md found it). A gain that far from one is not a
+/// calibration slip: the drift is named, at its true rate, and the copper loss with it.
+#[test]
+fn a_drift_on_a_warming_part_is_not_absorbed_as_a_calibration_gain() {
+    let target = reference_column(AxisId::X, "motor_flange_temp_C", None);
+    let case = Case {
+        omitted: vec![Effect::CopperLoss, Effect::SensorOffsetDrift],
+        target: target.clone(),
+        machine: vec![],
+        real_only: vec![
+            "measurement.offset=1.0".into(),
+            "measurement.drift_per_hour=0.8".into(),
+        ],
+        noise: Noise::White,
+        hours: 5.0,
+        seed: 302,
+    };
+    let pair = make_pair(&case);
+    let report = analyse(&pair.sim, &pair.real, &target, &Options::default()).unwrap();
+    let (low, high) = servosight::discrepancy::library::CALIBRATION_GAIN_RANGE;
+    assert!(
+        report.calibration.gain > low && report.calibration.gain <= high,
+        "{}",
+        report.summary()
+    );
+    let named: Vec<&str> = report.findings.iter().map(|f| f.physics.as_str()).collect();
+    assert_eq!(named.first(), Some(&"sensor_offset_drift"), "{named:?}");
+    assert!(named.contains(&"copper_loss"), "{named:?}");
+    let drift = report.findings[0].parameters["drift_per_hour"];
+    assert!((drift - 0.8).abs() < 0.2, "drift {drift} per hour");
+}
+
 /// An observer hears the analysis advance phase by phase (the fraction never falls) and
 /// changes nothing in the result: the report is the same, to the last bit, as without one.
 /// Saying stop ends the analysis with `Cancelled` at its next stopping point — at the start,

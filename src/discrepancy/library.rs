@@ -561,6 +561,11 @@ fn thermal_family(
     }
 }
 
+/// The gains of the simulated target that count as its calibration (exclusive below, inclusive
+/// above): a scale error of up to a quarter either way. Beyond it the simulation is not
+/// miscalibrated but missing something, and the physics must explain it.
+pub const CALIBRATION_GAIN_RANGE: (f64, f64) = (0.8, 1.25);
+
 /// The library for the target in `ctx`: every correction whose signals exist, and the physics
 /// that could not be tried with the reason.
 pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
@@ -573,7 +578,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
     let simulated = format!("{} (simulated)", ctx.target);
 
     // A gain miscalibration competes with the physics, so that a plain gain error is
-    // absorbed as calibration and never reported as new physics.
+    // absorbed as calibration and never reported as new physics. A "gain" far from one is
+    // not a calibration slip: 4.5 × a flange temperature in °C (with −67 °C of offset) is a
+    // sensor drift that the warming target happens to resemble, and calling it calibration
+    // hid the drift. The gain (1 + the correction's coefficient) must stay within
+    // `CALIBRATION_GAIN_RANGE`.
     out.push(Family {
         kind: Kind::CalibrationGain,
         signals: vec![simulated.clone()],
@@ -581,7 +590,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         grid: vec![vec![]],
         refine: None,
         build: Box::new(|ctx, _| vec![ctx.sim.clone()]),
-        sign: None,
+        sign: Some(GainLimit {
+            driver: 0,
+            min: CALIBRATION_GAIN_RANGE.0 - 1.0,
+            max: CALIBRATION_GAIN_RANGE.1 - 1.0,
+        }),
         axis: None,
         lagged: false,
         state: false,
