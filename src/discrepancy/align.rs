@@ -106,9 +106,8 @@ impl<'a> Aligned<'a> {
         aligned.sim_target = aligned.sim_column(target).unwrap_or_default();
         aligned.censoring = Censoring::detect(&aligned.real_target, &aligned.sim_target);
         if let Some(censoring) = aligned.censoring {
-            for value in &mut aligned.sim_target {
-                *value = censoring.expected_reading(*value);
-            }
+            aligned.sim_target =
+                censoring.simulation_as_read(&aligned.real_target, &aligned.sim_target);
         }
         Ok(aligned)
     }
@@ -165,11 +164,17 @@ impl<'a> Aligned<'a> {
         };
         match self.censoring {
             Some(c) => format!(
-                "{joined}; the real target reads exactly {} in {:.1} % of the rows (an instrument that cannot read below it), so the simulation is compared as it would read: E[max({}, sim + noise)] with the noise σ = {:.4} estimated where the simulation is at that floor",
+                "{joined}; the real target reads exactly {} in {:.1} % of the rows (an instrument that cannot read below it), so the simulation is compared as it would read: in each of the {} stretches where it sits at that floor it is raised by what the floor adds to the mean reading there, leaving the instrument's own level μ in the residual (noise σ = {:.4} about that level){}",
                 c.floor,
                 100.0 * c.share_at_floor,
-                c.floor,
-                c.sigma
+                c.standstill_spans,
+                c.sigma,
+                match c.spans_levelled_beside {
+                    0 => String::new(),
+                    k => format!(
+                        "; for {k} of them (too short, or nearly all at the floor, to show their own level) the readings at the floor are taken at their expected value below it given the level of the running rows beside them"
+                    ),
+                }
             ),
             None => joined,
         }
