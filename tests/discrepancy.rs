@@ -1293,6 +1293,32 @@ fn a_drift_on_a_warming_part_is_not_absorbed_as_a_calibration_gain() {
     assert!((drift - 0.8).abs() < 0.2, "drift {drift} per hour");
 }
 
+/// The room concealed on the X motor flange (seed 301): once the room's correction is in, what
+/// is left is fitted as well by a small gain slip of the simulation as by a sensor drift — the
+/// block-by-block test cannot tell them apart. A gain slip is the simpler claim, so it is
+/// absorbed as calibration; before, the drift won by a hair and was reported as physics the
+/// simulation misses (the sweep of docs/discrepancy.md found it on the flange and the X
+/// stator, alone and beside four partners).
+#[test]
+fn a_drift_indistinguishable_from_a_gain_slip_is_absorbed_as_calibration() {
+    let target = reference_column(AxisId::X, "motor_flange_temp_C", None);
+    let case = Case {
+        omitted: vec![Effect::AmbientTemperature],
+        target: target.clone(),
+        machine: vec![],
+        real_only: vec![],
+        noise: Noise::White,
+        hours: 5.0,
+        seed: 301,
+    };
+    let pair = make_pair(&case);
+    let report = analyse(&pair.sim, &pair.real, &target, &Options::default()).unwrap();
+    let named: Vec<&str> = report.findings.iter().map(|f| f.physics.as_str()).collect();
+    assert_eq!(named, ["ambient_temperature"], "{}", report.summary());
+    assert!(report.calibration.gain_absorbed, "{}", report.summary());
+    assert!(report.improved.rmse < 1.5 * pair.noise_sigma);
+}
+
 /// An observer hears the analysis advance phase by phase (the fraction never falls) and
 /// changes nothing in the result: the report is the same, to the last bit, as without one.
 /// Saying stop ends the analysis with `Cancelled` at its next stopping point — at the start,

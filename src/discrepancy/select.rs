@@ -576,13 +576,18 @@ pub fn stepwise(
         };
         // Occam: when a simpler correction (fewer columns) of another kind predicts the held-out
         // blocks as well as the winner, the data cannot prefer the more flexible one; take
-        // the simpler and report the winner as indistinguishable.
+        // the simpler and report the winner as indistinguishable. A gain miscalibration is
+        // simpler than any physics of its width: where the data cannot tell the two apart,
+        // the simulation is not claimed to miss physics.
         let (best, runners, indistinguishable) = {
             let width = |m: usize| problem.members[m].columns.len();
+            let calibration = |m: usize| {
+                problem.families[problem.members[m].family].kind == Kind::CalibrationGain
+            };
             let simpler = indistinguishable
                 .iter()
                 .copied()
-                .filter(|&m| width(m) < width(best))
+                .filter(|&m| width(m) < width(best) || (width(m) == width(best) && calibration(m)))
                 .min_by(|&a, &b| {
                     width(a).cmp(&width(b)).then_with(|| {
                         let gain =
