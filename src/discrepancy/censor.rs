@@ -18,6 +18,11 @@
 //! are, they only bound μ from above, and each reading at the floor is taken at its expected
 //! value below it given the level of the running rows beside the span — the data cannot tell
 //! the two apart there, so the analysis is not handed a contrast the readings do not show.
+//!
+//! A recording that trails the simulation (a transport delay) stops late: the first rows of
+//! each simulated standstill still read a running current. The spans are therefore found on
+//! the simulation shifted onto the real standstills ([`Censoring::standstill_lag_rows`]); the
+//! delay itself is left in the residual for the analysis to name.
 
 use statrs::distribution::{ContinuousCDF, Normal};
 

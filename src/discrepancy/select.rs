@@ -83,7 +83,7 @@ pub struct Step {
     pub runners_up: Vec<(usize, f64)>,
     /// Members of other kinds whose held-out fit the data cannot tell apart from the winner's.
     pub indistinguishable: Vec<usize>,
-    /// Admitted as one of two effects that mask each other (see [`masked_pair`]): the partner
+    /// Admitted as one of two effects that mask each other (see `masked_pair`): the partner
     /// member, which the next step tests.
     pub masked_by: Option<usize>,
 }

@@ -401,7 +401,7 @@ impl Calibration {
     }
 }
 
-/// A model bound to a feature vector: evaluation is Σ cᵢ·x[idxᵢ].
+/// A model bound to a feature vector: evaluation is Σ cᵢ·`x[idxᵢ]`.
 #[derive(Debug, Clone)]
 pub struct BoundModel {
     terms: Vec<(usize, f64)>,

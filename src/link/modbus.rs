@@ -8,7 +8,7 @@
 //! by itself.
 //!
 //! tokio-modbus resynchronises silently on a bad CRC (it drops bytes and waits for a valid
-//! frame), so to count CRC errors the port is wrapped in a [`WireTap`] that keeps the bytes of
+//! frame), so to count CRC errors the port is wrapped in a `WireTap` that keeps the bytes of
 //! the current reply; a failed request whose reply bytes contain no frame with a valid CRC is a
 //! CRC error, one with no reply bytes at all is a timeout.
 

@@ -177,7 +177,7 @@ const BACKLASH_TEST_SPAN_MM: f64 = 1.0;
 
 /// The backlash test's part of a window that also holds other moves (the fingerprint's
 /// full-stroke passes): the longest stretch in which the command stays within
-/// [`BACKLASH_TEST_SPAN_MM`] of where the stretch began. The backlash fit searches up to the
+/// `BACKLASH_TEST_SPAN_MM` of where the stretch began. The backlash fit searches up to the
 /// largest move's amplitude, so a full-stroke pass left in would make it search metres in
 /// 0.1 µm steps and drown the test's small moves.
 pub fn reciprocating_segment(
