@@ -1,5 +1,5 @@
-//! Alignment: the real recording's time grid inside the overlap of both recordings, with the
-//! simulation interpolated onto it when the grids differ.
+//! Alignment: both recordings on one time grid inside their overlap — the real recording's,
+//! unless the simulation is clearly coarser — with the other interpolated onto it.
 
 use super::DiscrepancyError;
 use super::censor::Censoring;
@@ -8,23 +8,35 @@ use crate::signal::Recording;
 /// Fewest overlapping rows an analysis accepts.
 pub const MIN_ROWS: usize = 60;
 
+/// The simulation's grid is used when its typical step exceeds the real recording's by more
+/// than this factor: between its samples a coarse simulation holds no information, and a
+/// fast target interpolated across them (a current through a move shorter than a step) is
+/// an error of the interpolation that the analysis would take for missing physics.
+const COARSER_FACTOR: f64 = 1.5;
+
+/// For each aligned row: the source row at or before it and the fraction towards the next.
+type Index = Vec<(usize, f64)>;
+
 /// The two recordings joined on `time_s`.
 #[derive(Debug)]
 pub struct Aligned<'a> {
     real: &'a Recording,
     sim: &'a Recording,
-    /// First and one-past-last real row inside the overlap.
-    rows: std::ops::Range<usize>,
-    /// For each aligned row: the sim row at or before it and the fraction towards the next.
-    sim_index: Vec<(usize, f64)>,
-    /// True when the simulation had to be interpolated onto the real grid.
+    /// Where each aligned row lies in the real recording.
+    real_index: Index,
+    /// Where each aligned row lies in the simulation.
+    sim_index: Index,
+    /// True when the two recordings were not on one grid: the simulation interpolated onto the
+    /// real recording's, or the real recording taken at the coarser simulation's instants.
     pub resampled: bool,
+    /// True when the grid is the simulation's (it is clearly coarser than the real one).
+    pub on_simulation_grid: bool,
     /// Time of every aligned row, s.
     pub time: Vec<f64>,
     /// The real target.
     pub real_target: Vec<f64>,
-    /// The simulated target on the real grid — as the real instrument would read it when the
-    /// real recording is censored at a floor (see [`Censoring`]).
+    /// The simulated target on the aligned grid — as the real instrument would read it when
+    /// the real recording is censored at a floor (see [`Censoring`]).
     pub sim_target: Vec<f64>,
     /// The real target's floor and the noise cut off there, when it has one.
     pub censoring: Option<Censoring>,
@@ -63,40 +75,30 @@ impl<'a> Aligned<'a> {
                 real: describe_span(real),
             });
         }
-        let first = rt.partition_point(|&t| t < start);
-        let last = rt.partition_point(|&t| t <= end);
-        let rows = first..last;
-        if rows.len() < MIN_ROWS {
+        let real_step = real.median_step_s().unwrap_or(1.0);
+        let sim_step = sim.median_step_s().unwrap_or(real_step);
+        let on_simulation_grid = sim_step > COARSER_FACTOR * real_step;
+        let grid = if on_simulation_grid { st } else { rt };
+        let time: Vec<f64> = grid[grid.partition_point(|&t| t < start)..]
+            .iter()
+            .copied()
+            .take_while(|&t| t <= end)
+            .collect();
+        if time.len() < MIN_ROWS {
             return Err(DiscrepancyError::TooShort {
-                rows: rows.len(),
+                rows: time.len(),
                 needed: MIN_ROWS,
             });
         }
-        let time: Vec<f64> = rt[rows.clone()].to_vec();
-        let step = real.median_step_s().unwrap_or(1.0);
-        let mut sim_index = Vec::with_capacity(time.len());
-        let mut j = 0usize;
-        let mut resampled = false;
-        for &t in &time {
-            while j + 1 < st.len() && st[j + 1] <= t {
-                j += 1;
-            }
-            let fraction = if j + 1 < st.len() && st[j + 1] > st[j] {
-                ((t - st[j]) / (st[j + 1] - st[j])).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            if (st[j] - t).abs() > 1e-6 * step.max(1e-9) {
-                resampled = true;
-            }
-            sim_index.push((j, fraction));
-        }
+        let (real_index, real_resampled) = index_onto(rt, &time, real_step);
+        let (sim_index, sim_resampled) = index_onto(st, &time, real_step.min(sim_step));
         let mut aligned = Aligned {
             real,
             sim,
-            rows,
+            real_index,
             sim_index,
-            resampled,
+            resampled: on_simulation_grid || real_resampled || sim_resampled,
+            on_simulation_grid,
             time,
             real_target: Vec::new(),
             sim_target: Vec::new(),
@@ -122,28 +124,15 @@ impl<'a> Aligned<'a> {
         self.time.is_empty()
     }
 
-    /// A column of the real recording on the aligned rows.
+    /// A column of the real recording on the aligned rows (interpolated when the grid is the
+    /// simulation's and the instants differ).
     pub fn real_column(&self, name: &str) -> Option<Vec<f64>> {
-        self.real
-            .try_column(name)
-            .map(|c| c[self.rows.clone()].to_vec())
+        Some(interpolate(self.real.try_column(name)?, &self.real_index))
     }
 
     /// A column of the simulation on the aligned rows (interpolated when the grids differ).
     pub fn sim_column(&self, name: &str) -> Option<Vec<f64>> {
-        let column = self.sim.try_column(name)?;
-        Some(
-            self.sim_index
-                .iter()
-                .map(|&(j, f)| {
-                    if f > 0.0 && j + 1 < column.len() {
-                        column[j] + f * (column[j + 1] - column[j])
-                    } else {
-                        column[j]
-                    }
-                })
-                .collect(),
-        )
+        Some(interpolate(self.sim.try_column(name)?, &self.sim_index))
     }
 
     /// One sentence on how the two recordings were joined.
@@ -154,7 +143,12 @@ impl<'a> Aligned<'a> {
             self.time.first().copied().unwrap_or(0.0),
             self.time.last().copied().unwrap_or(0.0)
         );
-        let joined = if self.resampled {
+        let joined = if self.on_simulation_grid {
+            format!(
+                "the simulation's grid is coarser: the real recording ({} rows) was compared at the simulation's instants (linearly interpolated where they fall between its rows), since between its samples the simulation holds nothing to compare; {span}",
+                self.real.len()
+            )
+        } else if self.resampled {
             format!(
                 "the time grids differ: the simulation ({} rows) was linearly interpolated onto the real recording's grid; {span}",
                 self.sim.len()
@@ -179,6 +173,44 @@ impl<'a> Aligned<'a> {
             None => joined,
         }
     }
+}
+
+/// Where each of `times` lies in the increasing `source` times: the row at or before it and
+/// the fraction towards the next; and whether any falls between rows (by more than a
+/// millionth of `step`).
+fn index_onto(source: &[f64], times: &[f64], step: f64) -> (Index, bool) {
+    let mut index = Vec::with_capacity(times.len());
+    let mut j = 0usize;
+    let mut resampled = false;
+    for &t in times {
+        while j + 1 < source.len() && source[j + 1] <= t {
+            j += 1;
+        }
+        let fraction = if j + 1 < source.len() && source[j + 1] > source[j] {
+            ((t - source[j]) / (source[j + 1] - source[j])).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        if (source[j] - t).abs() > 1e-6 * step.max(1e-9) {
+            resampled = true;
+        }
+        index.push((j, fraction));
+    }
+    (index, resampled)
+}
+
+/// `column` read at `index` by linear interpolation.
+fn interpolate(column: &[f64], index: &Index) -> Vec<f64> {
+    index
+        .iter()
+        .map(|&(j, f)| {
+            if f > 0.0 && j + 1 < column.len() {
+                column[j] + f * (column[j + 1] - column[j])
+            } else {
+                column[j]
+            }
+        })
+        .collect()
 }
 
 fn describe_span(recording: &Recording) -> String {

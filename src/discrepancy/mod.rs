@@ -709,6 +709,7 @@ fn analyse_watched(
         noise_floor,
         alignment: Alignment {
             resampled: aligned.resampled,
+            on_simulation_grid: aligned.on_simulation_grid,
             note: aligned.note(),
             start_s: ctx.time.first().copied().unwrap_or(0.0),
             end_s: ctx.time.last().copied().unwrap_or(0.0),

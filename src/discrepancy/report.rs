@@ -89,8 +89,12 @@ pub struct NoiseFloor {
 /// How the recordings were joined.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Alignment {
-    /// True when the simulation was interpolated onto the real recording's time grid.
+    /// True when the recordings were not on one grid (see `on_simulation_grid`).
     pub resampled: bool,
+    /// True when the comparison runs on the simulation's grid, which is clearly coarser than
+    /// the real recording's (the real one taken at the simulation's instants); otherwise on
+    /// the real recording's grid, with the simulation interpolated onto it when they differ.
+    pub on_simulation_grid: bool,
     /// A sentence.
     pub note: String,
     /// First aligned time, s.

@@ -194,6 +194,7 @@ mod tests {
             },
             alignment: crate::discrepancy::Alignment {
                 resampled: false,
+                on_simulation_grid: false,
                 note: String::new(),
                 start_s: 0.0,
                 end_s: 999.0,
