@@ -1144,6 +1144,48 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
     }
 }
 
+/// Runs `servosight simulate` of the production scenario into `path`, with `extra` arguments.
+fn simulate_to(path: &std::path::Path, hours: &str, seed: &str, extra: &[&str]) {
+    let mut args = vec![
+        "simulate",
+        "--scenario",
+        "production",
+        "--hours",
+        hours,
+        "--seed",
+        seed,
+        "-o",
+        arg(path),
+    ];
+    args.extend(extra);
+    let run = servosight(&args);
+    assert!(run.status.success(), "{}", stderr(&run));
+}
+
+/// Runs `servosight discrepancy` with `extra` arguments and returns its JSON report.
+fn discrepancy_json(
+    sim: &std::path::Path,
+    real: &std::path::Path,
+    target: &str,
+    extra: &[&str],
+) -> serde_json::Value {
+    let mut args = vec![
+        "discrepancy",
+        "--sim",
+        arg(sim),
+        "--real",
+        arg(real),
+        "--target",
+        target,
+        "--json",
+        "-",
+    ];
+    args.extend(extra);
+    let run = servosight(&args);
+    assert!(run.status.success(), "{}", stderr(&run));
+    serde_json::from_str(&stdout(&run)).expect("the JSON report")
+}
+
 /// A pair with nothing concealed is a success with verdict `consistent` and no findings; a
 /// simulation on another time grid is resampled and the report says so.
 #[test]
@@ -1151,42 +1193,14 @@ fn a_consistent_pair_succeeds_and_a_coarser_simulation_is_resampled() {
     let dir = tempfile::tempdir().unwrap();
     let sim = dir.path().join("sim.csv");
     let real = dir.path().join("real.csv");
-    for (path, extra) in [
-        (&sim, vec!["--noise", "0", "--rate", "0.2"]),
-        (&real, vec![]),
-    ] {
-        let mut args = vec![
-            "simulate",
-            "--scenario",
-            "production",
-            "--hours",
-            "2",
-            "--seed",
-            "9",
-            "-o",
-            arg(path),
-        ];
-        args.extend(extra);
-        let run = servosight(&args);
-        assert!(run.status.success(), "{}", stderr(&run));
-    }
-    let run = servosight(&[
-        "discrepancy",
-        "--sim",
-        arg(&sim),
-        "--real",
-        arg(&real),
-        "--target",
+    simulate_to(&sim, "2", "9", &["--noise", "0", "--rate", "0.2"]);
+    simulate_to(&real, "2", "9", &[]);
+    let report = discrepancy_json(
+        &sim,
+        &real,
         &reference_column(AxisId::S, "elongation_um", None),
-        "--json",
-        "-",
-        "--surrogates",
-        "39",
-        "--alpha",
-        "0.025",
-    ]);
-    assert!(run.status.success(), "{}", stderr(&run));
-    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+        &["--surrogates", "39", "--alpha", "0.025"],
+    );
     assert_eq!(report["verdict"], "consistent", "{report}");
     assert_eq!(report["findings"].as_array().unwrap().len(), 0);
     assert_eq!(report["alignment"]["resampled"], true);
@@ -1211,37 +1225,9 @@ fn a_coarse_simulation_of_a_fast_target_is_compared_at_its_own_instants() {
     let dir = tempfile::tempdir().unwrap();
     let sim = dir.path().join("sim.csv");
     let real = dir.path().join("real.csv");
-    for (path, rate, noise) in [(&sim, "1", "0"), (&real, "10", "1")] {
-        let run = servosight(&[
-            "simulate",
-            "--scenario",
-            "production",
-            "--hours",
-            "1",
-            "--seed",
-            "41",
-            "--rate",
-            rate,
-            "--noise",
-            noise,
-            "-o",
-            arg(path),
-        ]);
-        assert!(run.status.success(), "{}", stderr(&run));
-    }
-    let run = servosight(&[
-        "discrepancy",
-        "--sim",
-        arg(&sim),
-        "--real",
-        arg(&real),
-        "--target",
-        &axis_column(AxisId::X, Quantity::Torque),
-        "--json",
-        "-",
-    ]);
-    assert!(run.status.success(), "{}", stderr(&run));
-    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+    simulate_to(&sim, "1", "41", &["--rate", "1", "--noise", "0"]);
+    simulate_to(&real, "1", "41", &["--rate", "10"]);
+    let report = discrepancy_json(&sim, &real, &axis_column(AxisId::X, Quantity::Torque), &[]);
     assert_eq!(report["verdict"], "consistent", "{report}");
     assert_eq!(report["alignment"]["on_simulation_grid"], true);
     assert_eq!(report["rows"], 3601);
