@@ -1233,6 +1233,32 @@ fn a_coarse_simulation_of_a_fast_target_is_compared_at_its_own_instants() {
     assert_eq!(report["rows"], 3601);
 }
 
+/// A simulation with fewer time points than an analysis needs (41 over two hours, as a sparse
+/// FEA export might have) is not refused for being coarse: it is compared on the real grid,
+/// interpolated, as before.
+#[test]
+fn a_simulation_too_sparse_for_its_own_grid_is_compared_on_the_real_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim.csv");
+    let real = dir.path().join("real.csv");
+    simulate_to(
+        &sim,
+        "2",
+        "9",
+        &["--noise", "0", "--rate", "0.005555555555555556"],
+    );
+    simulate_to(&real, "2", "9", &[]);
+    let report = discrepancy_json(
+        &sim,
+        &real,
+        &reference_column(AxisId::S, "elongation_um", None),
+        &["--surrogates", "39", "--alpha", "0.025"],
+    );
+    assert_eq!(report["alignment"]["on_simulation_grid"], false, "{report}");
+    assert_eq!(report["alignment"]["resampled"], true);
+    assert_eq!(report["rows"], 7201);
+}
+
 /// `recording` with `column` replaced by `f(value)`.
 fn with_column_mapped(recording: &Recording, column: &str, f: impl Fn(f64) -> f64) -> Recording {
     let index = recording

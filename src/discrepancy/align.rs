@@ -77,13 +77,21 @@ impl<'a> Aligned<'a> {
         }
         let real_step = real.median_step_s().unwrap_or(1.0);
         let sim_step = sim.median_step_s().unwrap_or(real_step);
-        let on_simulation_grid = sim_step > COARSER_FACTOR * real_step;
-        let grid = if on_simulation_grid { st } else { rt };
-        let time: Vec<f64> = grid[grid.partition_point(|&t| t < start)..]
-            .iter()
-            .copied()
-            .take_while(|&t| t <= end)
-            .collect();
+        let inside = |grid: &[f64]| -> Vec<f64> {
+            grid[grid.partition_point(|&t| t < start)..]
+                .iter()
+                .copied()
+                .take_while(|&t| t <= end)
+                .collect()
+        };
+        // A simulation too sparse to give the fewest rows an analysis needs (a handful of FEA
+        // time points) is still compared on the real grid, interpolated, as a slow target
+        // allows.
+        let coarse = (sim_step > COARSER_FACTOR * real_step)
+            .then(|| inside(st))
+            .filter(|time| time.len() >= MIN_ROWS);
+        let on_simulation_grid = coarse.is_some();
+        let time = coarse.unwrap_or_else(|| inside(rt));
         if time.len() < MIN_ROWS {
             return Err(DiscrepancyError::TooShort {
                 rows: time.len(),
