@@ -2,6 +2,7 @@
 
 mod common;
 mod discrepancy;
+mod discrepancy_other_machine;
 mod estimators_cli;
 mod fit;
 mod link_replay;

@@ -10,7 +10,9 @@
 use std::collections::BTreeMap;
 use std::fmt;
 
-use super::series::{legendre, lowpass, mean, quantile, robust_sigma, shifted, smooth_sign};
+use super::series::{
+    legendre, lowpass, lowpass_from, mean, quantile, robust_sigma, shifted, smooth_sign,
+};
 use crate::signal::channel::{AMBIENT, COOLANT, Channel};
 use crate::signal::{AxisId, Quantity, axis_column};
 
@@ -470,6 +472,27 @@ fn lp(ctx: &Context, values: &[f64], tau: f64) -> Vec<f64> {
     lowpass(&ctx.time, values, tau)
 }
 
+/// Where a lagged driver's contribution starts at the first row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Start {
+    /// At rest: the simulation is started on the machine's state, so the heat of operation it
+    /// leaves out has added nothing yet at the first row. Starting in equilibrium with the
+    /// first row's driver instead would claim a whole lag's worth of heat already there
+    /// whenever a recording starts mid-cut.
+    Rest,
+    /// In equilibrium with the first row's driver: the room has acted on the machine long
+    /// before any recording, and each run starts soaked in its own room.
+    Equilibrium,
+}
+
+/// What a driver has added to the target by each row, through a lag of time constant τ.
+fn accumulated(ctx: &Context, driver: &[f64], tau: f64, start: Start) -> Vec<f64> {
+    match start {
+        Start::Rest => lowpass_from(&ctx.time, driver, tau, 0.0),
+        Start::Equilibrium => lowpass(&ctx.time, driver, tau),
+    }
+}
+
 fn normalised_position(position: &[f64]) -> Vec<f64> {
     let lo = quantile(position, 0.001);
     let hi = quantile(position, 0.999);
@@ -488,12 +511,12 @@ const COPPER_TEMPERATURE_COEFFICIENT: f64 = 0.00393;
 
 /// Heat reaching the target from a driver: one first-order lag, or two in parallel (a sum of
 /// two exponentials, which is what a two-node thermal network produces).
-fn heat_path(ctx: &Context, driver: &[f64], theta: &[f64]) -> Vec<Vec<f64>> {
+fn heat_path(ctx: &Context, driver: &[f64], theta: &[f64], start: Start) -> Vec<Vec<f64>> {
     let tau = theta[0];
     let ratio = theta.last().copied().unwrap_or(0.0);
-    let mut columns = vec![lp(ctx, driver, tau)];
+    let mut columns = vec![accumulated(ctx, driver, tau, start)];
     if ratio > 0.0 {
-        columns.push(lp(ctx, driver, tau * ratio));
+        columns.push(accumulated(ctx, driver, tau * ratio, start));
     }
     columns
 }
@@ -541,6 +564,7 @@ fn thermal_family(
     drivers: Drivers,
     sign: Option<GainLimit>,
     axis: Option<AxisId>,
+    start: Start,
 ) -> Family {
     Family {
         kind: Kind::Physics(kind),
@@ -551,7 +575,7 @@ fn thermal_family(
         build: Box::new(move |ctx, theta| {
             drivers(ctx, theta)
                 .iter()
-                .flat_map(|d| heat_path(ctx, d, theta))
+                .flat_map(|d| heat_path(ctx, d, theta, start))
                 .collect()
         }),
         sign,
@@ -606,9 +630,13 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         grid: thermal_grid(&taus, &[]),
         refine: Some(Refine { log: true }),
         build: Box::new(|ctx, theta| {
-            heat_path(ctx, &ctx.sim, theta)
+            // The simulated target's change since the start, as the real part would follow it
+            // with another time constant, less the change itself.
+            let start = ctx.sim.first().copied().unwrap_or(0.0);
+            let change: Vec<f64> = ctx.sim.iter().map(|s| s - start).collect();
+            heat_path(ctx, &change, theta, Start::Rest)
                 .into_iter()
-                .map(|lagged| lagged.iter().zip(&ctx.sim).map(|(l, s)| l - s).collect())
+                .map(|lagged| lagged.iter().zip(&change).map(|(l, c)| l - c).collect())
                 .collect()
         }),
         sign: None,
@@ -663,6 +691,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     max: 1.05,
                 }),
                 None,
+                Start::Equilibrium,
             )),
             None => untested.push((
                 Physics::AmbientTemperature,
@@ -685,6 +714,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     }),
                     None,
                     None,
+                    Start::Rest,
                 )));
             }
             Some(_) => untested.push((
@@ -739,12 +769,13 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     // (`state_dependent`), which makes that feedback self-consistent; before
                     // that, while the candidates compete, the second driver stands for it (the
                     // next term of the series), with its own coefficient.
-                    let lowered = lp(ctx, &cooling, theta[0]);
+                    let lowered = accumulated(ctx, &cooling, theta[0], Start::Rest);
                     let feedback = spin.iter().zip(&lowered).map(|(s, l)| s * l).collect();
                     vec![cooling, feedback]
                 }),
                 temperature.then_some(GainLimit::negative(0)),
                 Some(axis),
+                Start::Rest,
             )));
             out.push(thermal_family(
                 Physics::IronLoss,
@@ -762,6 +793,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 }),
                 temperature.then_some(GainLimit::positive(0)),
                 Some(axis),
+                Start::Rest,
             ));
             match &axis_signals.current {
                 Some(_) => out.push(thermal_family(
@@ -792,7 +824,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             .collect();
                         // The extra warmth leaves faster while the motor spins (forced
                         // convection, ∝ n^0.8): the feedback term of the heat path.
-                        let warmed = lp(ctx, &heat, theta[0]);
+                        let warmed = accumulated(ctx, &heat, theta[0], Start::Rest);
                         let shed = a
                             .speed
                             .iter()
@@ -803,6 +835,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     }),
                     temperature.then_some(GainLimit::positive(0)),
                     Some(axis),
+                    Start::Rest,
                 )),
                 None => untested.push((
                     Physics::CopperLoss,
@@ -870,6 +903,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     }),
                     Some(GainLimit::negative(1)),
                     Some(axis),
+                    Start::Rest,
                 );
                 // On a temperature target the lubricant's warmth is the target's own.
                 out.push(if temperature {
@@ -904,17 +938,23 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     }),
                     None,
                     Some(axis),
+                    Start::Rest,
                 ));
             }
         }
         if effort {
             let magnitude = matches!(ctx.class, TargetClass::Effort { magnitude: true });
-            // For a magnitude (current) friction adds in the direction the drive pushes.
-            let oriented = move |ctx: &Context, d: f64, i: usize| {
-                if magnitude {
-                    d * ctx.sim[i].signum()
-                } else {
-                    d
+            // A friction force opposing the motion `d` adds to a magnitude (a current) while
+            // the drive pushes the way the axis moves, and takes from it while the drive
+            // brakes: its sign there is the measured torque's relative to the motion (with no
+            // torque column, the drive is taken to push, as it does against friction).
+            let oriented = move |a: &AxisSignals, d: f64, i: usize| {
+                if !magnitude {
+                    return d;
+                }
+                match a.torque.as_ref().and_then(|t| t.get(i)) {
+                    Some(t) if *t != 0.0 => d * t.signum(),
+                    _ => d.abs(),
                 }
             };
             // Direction-dependent friction shows only where the direction changes; on an
@@ -945,7 +985,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             .direction
                             .iter()
                             .enumerate()
-                            .map(|(i, d)| oriented(ctx, *d, i))
+                            .map(|(i, d)| oriented(a, *d, i))
                             .collect();
                         let share = theta.first().copied().unwrap_or(0.0);
                         if share <= 0.0 {
@@ -991,7 +1031,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                                     .iter()
                                     .zip(&u)
                                     .enumerate()
-                                    .map(|(i, (d, u))| oriented(ctx, *d, i) * legendre(k, *u))
+                                    .map(|(i, (d, u))| oriented(a, *d, i) * legendre(k, *u))
                                     .collect()
                             })
                             .collect()
@@ -1030,7 +1070,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             .zip(&a.direction)
                             .enumerate()
                             .map(|(i, (n, d))| {
-                                oriented(ctx, *d, i) * (n.abs() / 1000.0).powf(2.0 / 3.0)
+                                oriented(a, *d, i) * (n.abs() / 1000.0).powf(2.0 / 3.0)
                             })
                             .collect();
                         if theta[0] <= 0.0 {

@@ -7,11 +7,14 @@ use rand::Rng;
 /// each row's own time step. The state starts at the first value: the machine is taken to be in
 /// equilibrium with its drivers when the recording starts.
 pub fn lowpass(time: &[f64], values: &[f64], tau_s: f64) -> Vec<f64> {
+    let first = values.first().copied().unwrap_or(0.0);
+    lowpass_from(time, values, tau_s, first)
+}
+
+/// First-order lag as [`lowpass`], its state starting at `initial`.
+pub fn lowpass_from(time: &[f64], values: &[f64], tau_s: f64, initial: f64) -> Vec<f64> {
     let mut out = Vec::with_capacity(values.len());
-    let Some(&first) = values.first() else {
-        return out;
-    };
-    let mut state = first;
+    let mut state = initial;
     let mut previous_t = time.first().copied().unwrap_or(0.0);
     // Recordings are mostly on a regular grid: the gain is recomputed only when the step
     // changes (the exponential is the cost of this loop).
