@@ -180,6 +180,10 @@ pub struct Context {
     pub duration_s: f64,
     /// Median sample interval, s.
     pub step_s: f64,
+    /// Where the target's instrument reads (1) and where it is silent (0): a drive that is
+    /// switched off reports exactly zero current whatever its sensor's offset. `None` when it
+    /// reads everywhere.
+    pub reading: Option<Vec<f64>>,
 }
 
 /// Columns (full rate) of one candidate member.
@@ -368,6 +372,7 @@ impl Context {
             axes,
             duration_s,
             step_s,
+            reading: silent_standstills(aligned, class),
         }
     }
 
@@ -425,6 +430,49 @@ impl Context {
         }
         grid
     }
+}
+
+/// The least share of rows, and number, that must be silent standstills for them to count.
+const SILENT_SHARE: f64 = 0.05;
+const SILENT_ROWS: usize = 30;
+
+/// A magnitude read as exactly its floor wherever the simulation stands still — no noise
+/// there at all (else the floor is a censored reading, see [`super::censor::Censoring`]) —
+/// comes from a drive that is switched off: its instrument is silent, and an offset or drift of
+/// that instrument shows only where it reads. The indicator of where it reads, if so.
+fn silent_standstills(aligned: &super::align::Aligned<'_>, class: TargetClass) -> Option<Vec<f64>> {
+    if class != (TargetClass::Effort { magnitude: true }) || aligned.censoring.is_some() {
+        return None;
+    }
+    let (real, sim) = (&aligned.real_target, &aligned.sim_target);
+    let lowest = |v: &[f64]| {
+        v.iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (floor, sim_floor) = (lowest(real), lowest(sim));
+    if !floor.is_finite() || !sim_floor.is_finite() {
+        return None;
+    }
+    let standing: Vec<bool> = sim.iter().map(|s| *s <= sim_floor).collect();
+    let standstills = standing.iter().filter(|s| **s).count();
+    let silent = real
+        .iter()
+        .zip(&standing)
+        .filter(|(r, s)| **s && **r == floor)
+        .count();
+    let enough = silent >= SILENT_ROWS && silent as f64 >= SILENT_SHARE * real.len() as f64;
+    // Every standstill reading at the floor, bar a few rows where the drive switches.
+    if !enough || (silent as f64) < 0.99 * standstills as f64 {
+        return None;
+    }
+    Some(
+        real.iter()
+            .zip(&standing)
+            .map(|(r, s)| if *s && *r == floor { 0.0 } else { 1.0 })
+            .collect(),
+    )
 }
 
 /// The direction of motion from a (noisy) speed: a smooth sign whose linear zone is a few
@@ -667,7 +715,15 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         refine: None,
         build: Box::new(|ctx, _| {
             let t0 = ctx.time.first().copied().unwrap_or(0.0);
-            vec![ctx.time.iter().map(|t| (t - t0) / 3600.0).collect()]
+            let hours = ctx.time.iter().map(|t| (t - t0) / 3600.0);
+            match &ctx.reading {
+                // Offset and drift only where the instrument reads.
+                Some(reading) => vec![
+                    hours.zip(reading).map(|(h, r)| h * r).collect(),
+                    reading.clone(),
+                ],
+                None => vec![hours.collect()],
+            }
         }),
         sign: None,
         axis: None,
@@ -1202,9 +1258,17 @@ pub fn explain(
         }
         Kind::Physics(Physics::SensorOffsetDrift) => {
             p.insert("drift_per_hour".into(), c0);
-            format!(
-                "the {target} instrument drifts by {c0:+.3}{unit}/h over the recording (slow linear drift of the measurement)"
-            )
+            match coefficients.get(1) {
+                Some(&offset) => {
+                    p.insert("offset_while_reading".into(), offset);
+                    format!(
+                        "the {target} instrument reads {offset:+.3}{unit} off at the start and drifts by {c0:+.3}{unit}/h wherever it reads (it reads exactly 0 while the drive is off)"
+                    )
+                }
+                None => format!(
+                    "the {target} instrument drifts by {c0:+.3}{unit}/h over the recording (slow linear drift of the measurement)"
+                ),
+            }
         }
         Kind::Physics(Physics::AmbientTemperature) => {
             p.insert("gain_per_K".into(), g0);
