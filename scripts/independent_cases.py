@@ -7,8 +7,8 @@ This script writes a different machine from the vocabulary's physics alone (DESI
 own lumped thermal network (stator, housing, front bearing of a spindle; motor and nut of a
 ball-screw feed axis), its own friction laws, its own operating program, noise (white, or
 white plus an AR(1) drift with a time constant of minutes), sample rates and an FEA-like
-coarse simulation grid in some cases. It does not import or call anything from the repository
-except the `servosight discrepancy` command under test.
+coarse simulation grid in some cases. Nothing of the repository is used but the
+`servosight discrepancy` command under test (run, and scored, as the sweep runs it).
 
 For each seed it builds one operating program, runs the model with every effect present
 ("real", with noise) and with one effect left out ("sim", noise-free, as a simulation is),
@@ -30,16 +30,13 @@ import concurrent.futures
 import json
 import math
 import os
-import subprocess
 import sys
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BINARY = os.path.join(ROOT, "target", "release", "servosight")
-EFFECTS = ["ambient_temperature", "thermal_inertia", "speed_dependent_cooling",
-           "lubricant_viscosity", "copper_loss", "coolant", "coulomb_reversal",
-           "position_dependent", "signal_delay", "sensor_offset_drift"]
+# The command is run, and its outcomes sized, as the sweep does (same effects, same thresholds).
+from discrepancy_sweep import ABSENT, EFFECTS, LARGE, analyse
+
 TARGETS = ["S.stator_temp_C", "X.stator_temp_C", "S.torque_Nm", "X.torque_Nm", "S.current_A",
            "X.current_A", "ref.S.front_bearing_temp_C", "ref.S.elongation_um",
            "ref.X.nut_temp_C"]
@@ -56,7 +53,6 @@ SCALE = {"S.stator_temp_C": 1.0, "X.stator_temp_C": 1.0, "S.torque_Nm": 0.4,
          "ref.X.nut_temp_C": 0.6}
 OPERATING = ["S.speed_rpm", "X.speed_rpm", "X.position_mm", "coolant_on", "ambient_C"]
 DT = 0.5  # the model's integration step, s
-ABSENT, LARGE = 0.05, 3.0
 
 
 def program(rng, hours):
@@ -284,17 +280,6 @@ def measured_clean(full, name, effect, delay_s, offsets):
         offset, drift = offsets[name]
         x = x + offset + drift * clean_hours(len(x))
     return x
-
-
-def analyse(d, target):
-    report_path = os.path.join(d, target.replace("#", "_") + ".json")
-    if not os.path.exists(report_path):
-        run = subprocess.run([BINARY, "discrepancy", "--sim", f"{d}/sim.csv", "--real",
-                              f"{d}/real.csv", "--target", target, "--json", report_path],
-                             capture_output=True, text=True)
-        if run.returncode != 0:
-            return None, run.stderr.strip()
-    return json.load(open(report_path)), None
 
 
 def main():
