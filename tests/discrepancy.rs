@@ -1047,9 +1047,7 @@ fn full_grid() {
 /// loss; the report names it, and the JSON follows DESIGN.md's contract.
 #[test]
 fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
-    let dir = tempfile::tempdir().unwrap();
-    let sim = dir.path().join("sim.csv");
-    let real = dir.path().join("real.csv");
+    let (dir, sim, real) = pair_paths();
     let json = dir.path().join("report.json");
     let plot = dir.path().join("plot.json");
     for (path, extra) in [
@@ -1144,6 +1142,14 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
     }
 }
 
+/// A temporary directory (removed when dropped) and the simulation's and the real
+/// recording's paths in it.
+pub fn pair_paths() -> (tempfile::TempDir, std::path::PathBuf, std::path::PathBuf) {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (sim, real) = (dir.path().join("sim.csv"), dir.path().join("real.csv"));
+    (dir, sim, real)
+}
+
 /// Runs `servosight simulate` of the production scenario into `path`, with `extra` arguments.
 fn simulate_to(path: &std::path::Path, hours: &str, seed: &str, extra: &[&str]) {
     let mut args = vec![
@@ -1163,7 +1169,7 @@ fn simulate_to(path: &std::path::Path, hours: &str, seed: &str, extra: &[&str]) 
 }
 
 /// Runs `servosight discrepancy` with `extra` arguments and returns its JSON report.
-fn discrepancy_json(
+pub fn discrepancy_json(
     sim: &std::path::Path,
     real: &std::path::Path,
     target: &str,
@@ -1186,21 +1192,25 @@ fn discrepancy_json(
     serde_json::from_str(&stdout(&run)).expect("the JSON report")
 }
 
-/// A pair with nothing concealed is a success with verdict `consistent` and no findings; a
-/// simulation on another time grid is resampled and the report says so.
-#[test]
-fn a_consistent_pair_succeeds_and_a_coarser_simulation_is_resampled() {
-    let dir = tempfile::tempdir().unwrap();
-    let sim = dir.path().join("sim.csv");
-    let real = dir.path().join("real.csv");
-    simulate_to(&sim, "2", "9", &["--noise", "0", "--rate", "0.2"]);
+/// The report on the spindle elongation of a 2 h pair with nothing concealed, the noiseless
+/// simulation sampled at `rate` Hz and the real recording at the twin's default rate.
+fn elongation_report_with_simulation_rate(rate: &str) -> serde_json::Value {
+    let (_dir, sim, real) = pair_paths();
+    simulate_to(&sim, "2", "9", &["--noise", "0", "--rate", rate]);
     simulate_to(&real, "2", "9", &[]);
-    let report = discrepancy_json(
+    discrepancy_json(
         &sim,
         &real,
         &reference_column(AxisId::S, "elongation_um", None),
         &["--surrogates", "39", "--alpha", "0.025"],
-    );
+    )
+}
+
+/// A pair with nothing concealed is a success with verdict `consistent` and no findings; a
+/// simulation on another time grid is resampled and the report says so.
+#[test]
+fn a_consistent_pair_succeeds_and_a_coarser_simulation_is_resampled() {
+    let report = elongation_report_with_simulation_rate("0.2");
     assert_eq!(report["verdict"], "consistent", "{report}");
     assert_eq!(report["findings"].as_array().unwrap().len(), 0);
     assert_eq!(report["alignment"]["resampled"], true);
@@ -1222,9 +1232,7 @@ fn a_consistent_pair_succeeds_and_a_coarser_simulation_is_resampled() {
 /// instants, where both recordings hold the same thing, the pair is consistent.
 #[test]
 fn a_coarse_simulation_of_a_fast_target_is_compared_at_its_own_instants() {
-    let dir = tempfile::tempdir().unwrap();
-    let sim = dir.path().join("sim.csv");
-    let real = dir.path().join("real.csv");
+    let (_dir, sim, real) = pair_paths();
     simulate_to(&sim, "1", "41", &["--rate", "1", "--noise", "0"]);
     simulate_to(&real, "1", "41", &["--rate", "10"]);
     let report = discrepancy_json(&sim, &real, &axis_column(AxisId::X, Quantity::Torque), &[]);
@@ -1238,22 +1246,7 @@ fn a_coarse_simulation_of_a_fast_target_is_compared_at_its_own_instants() {
 /// interpolated, as before.
 #[test]
 fn a_simulation_too_sparse_for_its_own_grid_is_compared_on_the_real_one() {
-    let dir = tempfile::tempdir().unwrap();
-    let sim = dir.path().join("sim.csv");
-    let real = dir.path().join("real.csv");
-    simulate_to(
-        &sim,
-        "2",
-        "9",
-        &["--noise", "0", "--rate", "0.005555555555555556"],
-    );
-    simulate_to(&real, "2", "9", &[]);
-    let report = discrepancy_json(
-        &sim,
-        &real,
-        &reference_column(AxisId::S, "elongation_um", None),
-        &["--surrogates", "39", "--alpha", "0.025"],
-    );
+    let report = elongation_report_with_simulation_rate("0.005555555555555556");
     assert_eq!(report["alignment"]["on_simulation_grid"], false, "{report}");
     assert_eq!(report["alignment"]["resampled"], true);
     assert_eq!(report["rows"], 7201);

@@ -8,7 +8,7 @@
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use crate::common::{arg, servosight, stderr, stdout};
+use crate::discrepancy::{discrepancy_json, pair_paths};
 
 /// What the feed axis's run has.
 #[derive(Debug, Clone, Copy)]
@@ -105,23 +105,10 @@ fn feed_axis_csv(seed: u64, physics: Physics) -> String {
 
 /// The report of `servosight discrepancy` on the pair.
 fn compare(sim: &str, real: &str, target: &str) -> serde_json::Value {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let (sim_path, real_path) = (dir.path().join("sim.csv"), dir.path().join("real.csv"));
+    let (_dir, sim_path, real_path) = pair_paths();
     std::fs::write(&sim_path, sim).expect("the simulation written");
     std::fs::write(&real_path, real).expect("the recording written");
-    let run = servosight(&[
-        "discrepancy",
-        "--sim",
-        arg(&sim_path),
-        "--real",
-        arg(&real_path),
-        "--target",
-        target,
-        "--json",
-        "-",
-    ]);
-    assert!(run.status.success(), "{}", stderr(&run));
-    serde_json::from_str(&stdout(&run)).expect("the JSON report")
+    discrepancy_json(&sim_path, &real_path, target, &[])
 }
 
 fn named(report: &serde_json::Value) -> Vec<String> {

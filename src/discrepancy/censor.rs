@@ -76,6 +76,45 @@ pub struct Censoring {
     pub standstill_lag_rows: isize,
 }
 
+/// The least share of rows, and number, that must be silent standstills for them to count.
+const SILENT_SHARE: f64 = 0.05;
+const SILENT_ROWS: usize = 30;
+
+/// The smallest finite value (+∞ when there is none).
+fn lowest(values: &[f64]) -> f64 {
+    values
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Where an instrument reads (1) and where it is silent (0), when it is silent somewhere: a
+/// reading exactly at its floor wherever the simulation stands still, with no noise there at
+/// all (where there is noise, the floor is a cut-off reading: [`Censoring`]), comes from a
+/// drive that is switched off. An offset or drift of its sensor shows only where it reads.
+pub fn reading_rows(real: &[f64], sim: &[f64]) -> Option<Vec<f64>> {
+    let n = real.len().min(sim.len());
+    let (real, sim) = (&real[..n], &sim[..n]);
+    let (floor, sim_floor) = (lowest(real), lowest(sim));
+    if !floor.is_finite() || !sim_floor.is_finite() {
+        return None;
+    }
+    let silent_at = |i: usize| sim[i] <= sim_floor && real[i] == floor;
+    let standstills = sim.iter().filter(|s| **s <= sim_floor).count();
+    let silent = (0..n).filter(|&i| silent_at(i)).count();
+    let enough = silent >= SILENT_ROWS && silent as f64 >= SILENT_SHARE * n as f64;
+    // Every standstill reading at the floor, bar a few rows where the drive switches.
+    if !enough || (silent as f64) < 0.99 * standstills as f64 {
+        return None;
+    }
+    Some(
+        (0..n)
+            .map(|i| if silent_at(i) { 0.0 } else { 1.0 })
+            .collect(),
+    )
+}
+
 impl Censoring {
     /// Detects a floor in `real` and estimates its noise where `sim` is at the floor. `None`
     /// when the real recording has no point mass at its minimum, the simulation is never at
@@ -83,11 +122,7 @@ impl Censoring {
     pub fn detect(real: &[f64], sim: &[f64]) -> Option<Censoring> {
         let n = real.len().min(sim.len());
         let (real, sim) = (&real[..n], &sim[..n]);
-        let floor = real
-            .iter()
-            .copied()
-            .filter(|v| v.is_finite())
-            .fold(f64::INFINITY, f64::min);
+        let floor = lowest(real);
         if !floor.is_finite() {
             return None;
         }
@@ -405,6 +440,32 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng, rngs::StdRng};
     use rand_distr::StandardNormal;
+
+    /// Exact zeros wherever the simulation stands still mark a silent instrument; zeros that
+    /// are only the cut-off half of the noise there do not.
+    #[test]
+    fn a_drive_switched_off_is_silent_and_a_noisy_floor_is_not() {
+        let sim: Vec<f64> = (0..1000)
+            .map(|i| if i % 200 < 60 { 0.0 } else { 5.0 })
+            .collect();
+        let off: Vec<f64> = sim
+            .iter()
+            .map(|s| if *s > 0.0 { s - 0.3 } else { 0.0 })
+            .collect();
+        let reading = reading_rows(&off, &sim).expect("silent standstills");
+        assert_eq!(reading.iter().filter(|r| **r == 0.0).count(), 300);
+        assert!(
+            sim.iter()
+                .zip(&reading)
+                .all(|(s, r)| (*s > 0.0) == (*r == 1.0))
+        );
+        let mut rng = StdRng::seed_from_u64(4);
+        let noisy: Vec<f64> = sim
+            .iter()
+            .map(|s| (s + 0.1 * rng.sample::<f64, _>(StandardNormal)).max(0.0))
+            .collect();
+        assert_eq!(reading_rows(&noisy, &sim), None);
+    }
 
     /// A drive current that stands still half the time, read by an instrument that clips at 0.
     fn clipped_current(sigma: f64, standstill_offset: f64) -> (Vec<f64>, Vec<f64>) {

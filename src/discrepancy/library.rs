@@ -372,7 +372,12 @@ impl Context {
             axes,
             duration_s,
             step_s,
-            reading: silent_standstills(aligned, class),
+            reading: match class {
+                TargetClass::Effort { magnitude: true } if aligned.censoring.is_none() => {
+                    super::censor::reading_rows(&aligned.real_target, &aligned.sim_target)
+                }
+                _ => None,
+            },
         }
     }
 
@@ -432,49 +437,6 @@ impl Context {
     }
 }
 
-/// The least share of rows, and number, that must be silent standstills for them to count.
-const SILENT_SHARE: f64 = 0.05;
-const SILENT_ROWS: usize = 30;
-
-/// A magnitude read as exactly its floor wherever the simulation stands still — no noise
-/// there at all (else the floor is a censored reading, see [`super::censor::Censoring`]) —
-/// comes from a drive that is switched off: its instrument is silent, and an offset or drift of
-/// that instrument shows only where it reads. The indicator of where it reads, if so.
-fn silent_standstills(aligned: &super::align::Aligned<'_>, class: TargetClass) -> Option<Vec<f64>> {
-    if class != (TargetClass::Effort { magnitude: true }) || aligned.censoring.is_some() {
-        return None;
-    }
-    let (real, sim) = (&aligned.real_target, &aligned.sim_target);
-    let lowest = |v: &[f64]| {
-        v.iter()
-            .copied()
-            .filter(|x| x.is_finite())
-            .fold(f64::INFINITY, f64::min)
-    };
-    let (floor, sim_floor) = (lowest(real), lowest(sim));
-    if !floor.is_finite() || !sim_floor.is_finite() {
-        return None;
-    }
-    let standing: Vec<bool> = sim.iter().map(|s| *s <= sim_floor).collect();
-    let standstills = standing.iter().filter(|s| **s).count();
-    let silent = real
-        .iter()
-        .zip(&standing)
-        .filter(|(r, s)| **s && **r == floor)
-        .count();
-    let enough = silent >= SILENT_ROWS && silent as f64 >= SILENT_SHARE * real.len() as f64;
-    // Every standstill reading at the floor, bar a few rows where the drive switches.
-    if !enough || (silent as f64) < 0.99 * standstills as f64 {
-        return None;
-    }
-    Some(
-        real.iter()
-            .zip(&standing)
-            .map(|(r, s)| if *s && *r == floor { 0.0 } else { 1.0 })
-            .collect(),
-    )
-}
-
 /// The direction of motion from a (noisy) speed: a smooth sign whose linear zone is a few
 /// times the speed noise seen at standstill.
 fn direction_of(speed: &[f64]) -> Vec<f64> {
@@ -516,10 +478,6 @@ fn reverses(speed: &[f64]) -> bool {
     count(true) >= needed && count(false) >= needed
 }
 
-fn lp(ctx: &Context, values: &[f64], tau: f64) -> Vec<f64> {
-    lowpass(&ctx.time, values, tau)
-}
-
 /// Where a lagged driver's contribution starts at the first row.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Start {
@@ -529,7 +487,8 @@ enum Start {
     /// whenever a recording starts mid-cut.
     Rest,
     /// In equilibrium with the first row's driver: the room has acted on the machine long
-    /// before any recording, and each run starts soaked in its own room.
+    /// before any recording, and each run starts soaked in its own room; a temperature
+    /// followed through a lag starts where it is.
     Equilibrium,
 }
 
@@ -678,13 +637,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         grid: thermal_grid(&taus, &[]),
         refine: Some(Refine { log: true }),
         build: Box::new(|ctx, theta| {
-            // The simulated target's change since the start, as the real part would follow it
-            // with another time constant, less the change itself.
-            let start = ctx.sim.first().copied().unwrap_or(0.0);
-            let change: Vec<f64> = ctx.sim.iter().map(|s| s - start).collect();
-            heat_path(ctx, &change, theta, Start::Rest)
+            // The simulated target as the real part would follow it with another time
+            // constant (both start where the recording does), less the target itself.
+            heat_path(ctx, &ctx.sim, theta, Start::Equilibrium)
                 .into_iter()
-                .map(|lagged| lagged.iter().zip(&change).map(|(l, c)| l - c).collect())
+                .map(|lagged| lagged.iter().zip(&ctx.sim).map(|(l, s)| l - s).collect())
                 .collect()
         }),
         sign: None,
@@ -1132,7 +1089,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         if theta[0] <= 0.0 {
                             return vec![drag];
                         }
-                        let warmth = lp(ctx, stator, theta[0]);
+                        let warmth = accumulated(ctx, stator, theta[0], Start::Equilibrium);
                         let w_mean = mean(&warmth);
                         let falling = drag
                             .iter()
