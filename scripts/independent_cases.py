@@ -22,7 +22,7 @@ and asks the command about each of nine targets. An effect's size on a target is
 
 `nothing` cases leave nothing out: every target must be `consistent`.
 
-Usage (after `cargo build --release`; a few minutes on 2 cores):
+Usage (after `cargo build --release`, with numpy installed; a few minutes on 2 cores):
 
     python3 scripts/independent_cases.py [OUT_DIR] [SEEDS]    (default /tmp/independent 1,2,3)
 """
