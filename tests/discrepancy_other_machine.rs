@@ -126,6 +126,27 @@ fn compare(sim: &str, real: &str, target: &str) -> serde_json::Value {
     discrepancy_json(&sim_path, &real_path, target, &[])
 }
 
+/// The report on `target` when the simulation leaves the friction of `REAL` out.
+fn coulomb_left_out(seed: u64, target: &str) -> serde_json::Value {
+    let sim = feed_axis_csv(
+        seed,
+        Physics {
+            coulomb_nm: 0.0,
+            noisy: false,
+            ..REAL
+        },
+    );
+    compare(&sim, &feed_axis_csv(seed, REAL), target)
+}
+
+fn assert_named_first(report: &serde_json::Value, physics: &str) {
+    assert_eq!(
+        named(report).first().map(String::as_str),
+        Some(physics),
+        "{report}"
+    );
+}
+
 fn named(report: &serde_json::Value) -> Vec<String> {
     report["findings"]
         .as_array()
@@ -160,11 +181,7 @@ fn copper_heat_left_out_of_a_run_that_opens_mid_cut_is_named_and_fitted() {
         },
     );
     let report = compare(&sim, &feed_axis_csv(7, REAL), "X.stator_temp_C");
-    assert_eq!(
-        named(&report).first().map(String::as_str),
-        Some("copper_loss"),
-        "{report}"
-    );
+    assert_named_first(&report, "copper_loss");
     // Out of sample, the corrected simulation is within 1.5 × the thermometer's noise.
     let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
     assert!(rmse < 1.5 * 0.03, "held-out RMSE {rmse} °C");
@@ -175,20 +192,8 @@ fn copper_heat_left_out_of_a_run_that_opens_mid_cut_is_named_and_fitted() {
 /// torque, it could not fit a magnitude and the effect went unnamed.
 #[test]
 fn coulomb_friction_left_out_is_named_on_a_current_magnitude() {
-    let sim = feed_axis_csv(
-        8,
-        Physics {
-            coulomb_nm: 0.0,
-            noisy: false,
-            ..REAL
-        },
-    );
-    let report = compare(&sim, &feed_axis_csv(8, REAL), "X.current_A");
-    assert_eq!(
-        named(&report).first().map(String::as_str),
-        Some("coulomb_reversal"),
-        "{report}"
-    );
+    let report = coulomb_left_out(8, "X.current_A");
+    assert_named_first(&report, "coulomb_reversal");
 }
 
 /// Coulomb friction the simulation lacks makes the drive draw more current whichever way the
@@ -197,20 +202,8 @@ fn coulomb_friction_left_out_is_named_on_a_current_magnitude() {
 /// recordings' currents, and its step is the friction's.
 #[test]
 fn coulomb_friction_left_out_is_named_on_the_winding_through_the_current_it_draws() {
-    let sim = feed_axis_csv(
-        11,
-        Physics {
-            coulomb_nm: 0.0,
-            noisy: false,
-            ..REAL
-        },
-    );
-    let report = compare(&sim, &feed_axis_csv(11, REAL), "X.stator_temp_C");
-    assert_eq!(
-        named(&report).first().map(String::as_str),
-        Some("coulomb_reversal"),
-        "{report}"
-    );
+    let report = coulomb_left_out(11, "X.stator_temp_C");
+    assert_named_first(&report, "coulomb_reversal");
     // 0.35 N·m at 0.9 N·m/A: 0.39 A more current while the axis moves.
     let step = report["findings"][0]["parameters"]["current_step_A"]
         .as_f64()
@@ -229,20 +222,8 @@ fn coulomb_friction_left_out_is_named_on_the_winding_through_the_current_it_draw
 /// there now, and the report says why.
 #[test]
 fn coulomb_friction_left_out_is_named_on_the_nut_it_heats() {
-    let sim = feed_axis_csv(
-        12,
-        Physics {
-            coulomb_nm: 0.0,
-            noisy: false,
-            ..REAL
-        },
-    );
-    let report = compare(&sim, &feed_axis_csv(12, REAL), "ref.X.nut_temp_C");
-    assert_eq!(
-        named(&report).first().map(String::as_str),
-        Some("coulomb_reversal"),
-        "{report}"
-    );
+    let report = coulomb_left_out(12, "ref.X.nut_temp_C");
+    assert_named_first(&report, "coulomb_reversal");
     let not_tested: Vec<&str> = report["not_tested"]
         .as_array()
         .expect("not_tested")
