@@ -147,6 +147,12 @@ fn assert_named_first(report: &serde_json::Value, physics: &str) {
     );
 }
 
+/// Out of sample, the corrected simulation is within 1.5 × the thermometers' noise (0.03 °C).
+fn assert_held_out_within_the_thermometer_noise(report: &serde_json::Value) {
+    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
+    assert!(rmse < 1.5 * 0.03, "held-out RMSE {rmse} °C");
+}
+
 fn named(report: &serde_json::Value) -> Vec<String> {
     report["findings"]
         .as_array()
@@ -182,9 +188,7 @@ fn copper_heat_left_out_of_a_run_that_opens_mid_cut_is_named_and_fitted() {
     );
     let report = compare(&sim, &feed_axis_csv(7, REAL), "X.stator_temp_C");
     assert_named_first(&report, "copper_loss");
-    // Out of sample, the corrected simulation is within 1.5 × the thermometer's noise.
-    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
-    assert!(rmse < 1.5 * 0.03, "held-out RMSE {rmse} °C");
+    assert_held_out_within_the_thermometer_noise(&report);
 }
 
 /// Coulomb friction adds to the current's magnitude whichever way the axis moves (the drive
@@ -212,8 +216,7 @@ fn coulomb_friction_left_out_is_named_on_the_winding_through_the_current_it_draw
         (step - 0.35 / 0.9).abs() < 0.25 * 0.35 / 0.9,
         "step {step} A"
     );
-    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
-    assert!(rmse < 1.5 * 0.03, "held-out RMSE {rmse} °C");
+    assert_held_out_within_the_thermometer_noise(&report);
 }
 
 /// The ball-screw nut is heated by its own friction, in proportion to the speed for a friction
@@ -233,8 +236,7 @@ fn coulomb_friction_left_out_is_named_on_the_nut_it_heats() {
     for motor_loss in ["iron_loss", "copper_loss"] {
         assert!(not_tested.contains(&motor_loss), "{not_tested:?}");
     }
-    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
-    assert!(rmse < 1.5 * 0.03, "held-out RMSE {rmse} °C");
+    assert_held_out_within_the_thermometer_noise(&report);
 }
 
 /// A current sensor's offset and drift show only while the drive is on: switched off in the
