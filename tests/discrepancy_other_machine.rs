@@ -23,6 +23,32 @@ struct Physics {
     drive_off_in_dwells: bool,
     /// The current sensor's offset (A) and drift (A/h) wherever it reads.
     current_offset_drift: (f64, f64),
+    /// How the nut sheds heat to the air.
+    nut_convection: Convection,
+}
+
+/// The nut's heat transfer to the air around it.
+#[derive(Debug, Clone, Copy)]
+enum Convection {
+    /// Still air at every speed: 0.6 W/K.
+    StillAir,
+    /// Forced convection as the nut travels: 0.6 W/K × (1 + (n / 150 rpm)^0.8).
+    GrowingWithSpeed,
+    /// The forced convection's value at one speed (rpm), kept at every speed: what a
+    /// simulation with a constant coefficient has.
+    FixedAt(f64),
+}
+
+impl Convection {
+    /// W/K at `rpm`.
+    fn conductance(self, rpm: f64) -> f64 {
+        let forced = |n: f64| 0.6 * (1.0 + (n.abs() / 150.0).powf(0.8));
+        match self {
+            Convection::StillAir => 0.6,
+            Convection::GrowingWithSpeed => forced(rpm),
+            Convection::FixedAt(nominal) => forced(nominal),
+        }
+    }
 }
 
 const COLUMNS: &str = "time_s,X.speed_rpm,X.position_mm,X.torque_Nm,X.current_A,X.stator_temp_C,ref.X.nut_temp_C,ambient_C";
@@ -88,7 +114,7 @@ fn feed_axis_csv(seed: u64, physics: Physics) -> String {
             0.0
         };
         let friction_heat = 0.2 * friction_nm * feed_rpm * std::f64::consts::PI / 30.0;
-        nut += (friction_heat - 0.6 * (nut - room)) / 1200.0;
+        nut += (friction_heat - physics.nut_convection.conductance(speed) * (nut - room)) / 1200.0;
         let mut sample = |sigma: &Normal<f64>| {
             if physics.noisy {
                 sigma.sample(&mut noise)
@@ -170,6 +196,7 @@ const REAL: Physics = Physics {
     noisy: true,
     drive_off_in_dwells: false,
     current_offset_drift: (0.0, 0.0),
+    nut_convection: Convection::StillAir,
 };
 
 /// The winding's copper heat, left out of a simulation of a recording that opens mid-cut, has
@@ -236,6 +263,40 @@ fn coulomb_friction_left_out_is_named_on_the_nut_it_heats() {
     for motor_loss in ["iron_loss", "copper_loss"] {
         assert!(not_tested.contains(&motor_loss), "{not_tested:?}");
     }
+    assert_held_out_within_the_thermometer_noise(&report);
+}
+
+/// A simulation that gives the nut one convection coefficient, right for 250 rpm, against a
+/// nut whose convection grows as it travels faster: the real nut runs cooler than simulated
+/// at high feed and warmer at low feed and standstill. Cooling that only grows from still air
+/// could not fit the part that changes sign, and the lubricant's drag heat was named instead.
+/// (Over seeds 13–19 this pair is named so in 5 of 7; in the other two the nut's larger
+/// share of the change is between standstill and motion, and a missing heat capacity, a
+/// simpler correction, predicts the held-out blocks as well and is named with the convection
+/// listed as indistinguishable.)
+#[test]
+fn convection_kept_at_a_nominal_speed_is_named_with_that_speed() {
+    let real = Physics {
+        nut_convection: Convection::GrowingWithSpeed,
+        ..REAL
+    };
+    let sim = feed_axis_csv(
+        13,
+        Physics {
+            nut_convection: Convection::FixedAt(250.0),
+            noisy: false,
+            ..real
+        },
+    );
+    let report = compare(&sim, &feed_axis_csv(13, real), "ref.X.nut_temp_C");
+    assert_named_first(&report, "speed_dependent_cooling");
+    let nominal = report["findings"][0]["parameters"]["simulated_at_rpm"]
+        .as_f64()
+        .expect("simulated_at_rpm");
+    assert!(
+        (nominal - 250.0).abs() < 0.3 * 250.0,
+        "nominal {nominal} rpm"
+    );
     assert_held_out_within_the_thermometer_noise(&report);
 }
 

@@ -210,9 +210,11 @@ pub struct Family {
     pub refine: Option<Refine>,
     /// Builds the columns.
     pub build: Builder,
-    /// A driver whose steady-state gain (the sum of its columns' coefficients) the physics
-    /// limits. Members fitting outside the limits are not this physics and are not offered.
-    pub sign: Option<GainLimit>,
+    /// Drivers whose steady-state gains (the sum of each one's columns' coefficients) the
+    /// physics limits. Members fitting outside any limit are not this physics and are not
+    /// offered; a member without a limited driver's columns (a nested simpler form) has
+    /// nothing to limit there.
+    pub limits: Vec<GainLimit>,
     /// Heat paths: the last nonlinear parameter is the ratio of a second lag's time constant
     /// to the first (0: one lag), and every driver has one column per lag.
     pub lagged: bool,
@@ -482,6 +484,18 @@ fn reverses(speed: &[f64]) -> bool {
     count(true) >= needed && count(false) >= needed
 }
 
+/// The slowest and the fastest tenth of an axis's running speeds (|n| above 1 % of its top
+/// speed), rpm: their 10th and 90th percentiles.
+fn running_speed_span(speed: &[f64]) -> (f64, f64) {
+    let top = speed.iter().fold(0.0_f64, |m, n| m.max(n.abs()));
+    let running: Vec<f64> = speed
+        .iter()
+        .map(|n| n.abs())
+        .filter(|n| *n > 0.01 * top)
+        .collect();
+    (quantile(&running, 0.1), quantile(&running, 0.9))
+}
+
 /// Where the target sits relative to its axis's heat sources: it decides which of them can
 /// reach it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -677,7 +691,7 @@ fn thermal_family(
     theta_names: Vec<&'static str>,
     grid: Vec<Vec<f64>>,
     drivers: Drivers,
-    sign: Option<GainLimit>,
+    limits: impl IntoIterator<Item = GainLimit>,
     axis: Option<AxisId>,
     start: Start,
 ) -> Family {
@@ -693,7 +707,7 @@ fn thermal_family(
                 .flat_map(|d| heat_path(ctx, d, theta, start))
                 .collect()
         }),
-        sign,
+        limits: limits.into_iter().collect(),
         axis,
         lagged: true,
         state: false,
@@ -729,11 +743,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         grid: vec![vec![]],
         refine: None,
         build: Box::new(|ctx, _| vec![ctx.sim.clone()]),
-        sign: Some(GainLimit {
+        limits: vec![GainLimit {
             driver: 0,
             min: CALIBRATION_GAIN_RANGE.0 - 1.0,
             max: CALIBRATION_GAIN_RANGE.1 - 1.0,
-        }),
+        }],
         axis: None,
         lagged: false,
         state: false,
@@ -752,7 +766,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 .map(|lagged| lagged.iter().zip(&ctx.sim).map(|(l, s)| l - s).collect())
                 .collect()
         }),
-        sign: None,
+        limits: Vec::new(),
         axis: None,
         lagged: true,
         state: false,
@@ -767,7 +781,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             let moved = shifted(&ctx.time, &ctx.sim, theta[0]);
             vec![moved.iter().zip(&ctx.sim).map(|(m, s)| m - s).collect()]
         }),
-        sign: None,
+        limits: Vec::new(),
         axis: None,
         lagged: false,
         state: false,
@@ -790,7 +804,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 None => vec![hours.collect()],
             }
         }),
-        sign: None,
+        limits: Vec::new(),
         axis: None,
         lagged: false,
         state: false,
@@ -883,20 +897,54 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             ));
         }
         if thermal {
-            // Forced convection: Nu ∝ Re^0.5 (laminar) to Re^0.8 (turbulent).
+            // Forced convection: Nu ∝ Re^0.5 (laminar) to Re^0.8 (turbulent). A simulation
+            // without it may have no forced convection at all (still air at every speed) or
+            // a constant coefficient for a nominal speed; the second form adds the excess
+            // itself, with the opposite sign, so that the extra cooling changes sign at the
+            // speed the simulation assumed. That form is offered only where the signs of
+            // both can be checked (a temperature's excess over room): elsewhere a free share
+            // of the target's own excess is any change of its thermal gain.
+            let nominal_forms: &[f64] = if temperature { &[0.0, 1.0] } else { &[0.0] };
+            let mut grid = Vec::new();
+            for member in thermal_grid(&taus, &[0.5, 0.8]) {
+                for &nominal in nominal_forms {
+                    // One lag: the changed convection acts on the part's own heat balance.
+                    if nominal > 0.0 && member[2] > 0.0 {
+                        continue;
+                    }
+                    grid.push(vec![member[0], member[1], nominal, member[2]]);
+                }
+            }
+            // A simulation's constant coefficient stands for a speed the machine runs at. The
+            // nominal form is the sum of two cooling terms, measured from the slowest and the
+            // fastest tenth of the running speeds, each growing with speed (both negative):
+            // the speed at which the sum changes sign then lies between the two. Beyond
+            // either end the form is a share of the target's own excess at nearly every row,
+            // which a drift, a heat source or a slow heat path also makes (a 23 σ sensor
+            // drift was named as convection kept at 230–550 rpm, below nearly every speed
+            // the spindle ran at, before the slowest tenth bounded it).
+            let (slow, fast) = running_speed_span(&axis_signals.speed);
             out.push(state_dependent(thermal_family(
                 Physics::SpeedDependentCooling,
                 vec![speed_name.clone(), simulated.clone()],
-                vec!["tau_s", "exponent", "lag_ratio"],
-                thermal_grid(&taus, &[0.5, 0.8]),
+                vec!["tau_s", "exponent", "nominal", "lag_ratio"],
+                grid,
                 Box::new(move |ctx, theta| {
                     let Some(a) = ctx.axis(axis) else {
                         return vec![];
                     };
+                    let nominal = theta[2] > 0.0;
+                    let from = |n: f64| {
+                        if nominal {
+                            (n / 1000.0).powf(theta[1])
+                        } else {
+                            0.0
+                        }
+                    };
                     let spin: Vec<f64> = a
                         .speed
                         .iter()
-                        .map(|n| (n.abs() / 1000.0).powf(theta[1]))
+                        .map(|n| (n.abs() / 1000.0).powf(theta[1]) - from(slow))
                         .collect();
                     let cooling: Vec<f64> =
                         spin.iter().zip(&ctx.excess).map(|(s, e)| s * e).collect();
@@ -907,9 +955,24 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     // next term of the series), with its own coefficient.
                     let lowered = accumulated(ctx, &cooling, theta[0], Start::Rest);
                     let feedback = spin.iter().zip(&lowered).map(|(s, l)| s * l).collect();
-                    vec![cooling, feedback]
+                    if nominal {
+                        let below_fast = from(fast) - from(slow);
+                        let cooling_from_fast = spin
+                            .iter()
+                            .zip(&ctx.excess)
+                            .map(|(s, e)| (s - below_fast) * e)
+                            .collect();
+                        vec![cooling, feedback, cooling_from_fast]
+                    } else {
+                        vec![cooling, feedback]
+                    }
                 }),
-                temperature.then_some(GainLimit::negative(0)),
+                // Cooling grows with speed, in both terms of the nominal form (see above).
+                if temperature {
+                    vec![GainLimit::negative(0), GainLimit::negative(2)]
+                } else {
+                    Vec::new()
+                },
                 Some(axis),
                 Start::Rest,
             )));
@@ -1185,7 +1248,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             .collect();
                         vec![coulomb, stribeck]
                     }),
-                    sign: None,
+                    limits: Vec::new(),
                     axis: Some(axis),
                     lagged: false,
                     state: false,
@@ -1220,7 +1283,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             })
                             .collect()
                     }),
-                    sign: None,
+                    limits: Vec::new(),
                     axis: Some(axis),
                     lagged: false,
                     state: false,
@@ -1269,7 +1332,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             .collect();
                         vec![drag, falling]
                     }),
-                    sign: Some(GainLimit::negative(1)),
+                    limits: vec![GainLimit::negative(1)],
                     axis: Some(axis),
                     lagged: false,
                     state: false,
@@ -1426,11 +1489,31 @@ pub fn explain(
         Kind::Physics(Physics::SpeedDependentCooling) => {
             let exponent = theta.get(1).copied().unwrap_or(1.0);
             p.insert("exponent".into(), exponent);
-            p.insert("relative_change_at_1000rpm".into(), g0);
-            format!(
-                "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with τ = {tau_min:.0} min",
-                100.0 * g0
-            )
+            let nominal = theta.get(2).is_some_and(|n| *n > 0.0);
+            // The nominal form's two terms grow with speed from the slowest (g0) and the
+            // fastest (g2) running speeds; together they change sign at the speed the
+            // simulation's constant convection stands for.
+            let (g_fast, _) = driver(2);
+            let growth = if nominal { g0 + g_fast } else { g0 };
+            p.insert("relative_change_at_1000rpm".into(), growth);
+            if nominal && growth < 0.0 {
+                let (slow, fast) = ctx
+                    .axis_of(family.axis)
+                    .map_or((0.0, 0.0), |a| running_speed_span(&a.speed));
+                let power = |n: f64| (n / 1000.0).powf(exponent);
+                let at = (g0 * power(slow) + g_fast * power(fast)) / growth;
+                let nominal_rpm = 1000.0 * at.max(0.0).powf(1.0 / exponent);
+                p.insert("simulated_at_rpm".into(), nominal_rpm);
+                format!(
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}) where the simulation keeps the value for {nominal_rpm:.0} rpm: the {target}'s rise above its reference changes by {:+.1} % per (1000 rpm)^{exponent} from there, settling with τ = {tau_min:.0} min",
+                    100.0 * growth
+                )
+            } else {
+                format!(
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with τ = {tau_min:.0} min",
+                    100.0 * growth
+                )
+            }
         }
         Kind::Physics(Physics::CopperLoss) => {
             let current = ctx
@@ -1568,6 +1651,24 @@ pub fn explain(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_running_speeds_span_ignores_standstill_and_direction() {
+        // A third of the rows stand still; of the running rows, 30 % at 100 rpm, 40 % at
+        // 500 rpm one way and 30 % at 900 rpm the other.
+        let mut speed = vec![0.0; 500];
+        speed.extend(
+            [100.0; 300]
+                .into_iter()
+                .chain([500.0; 400])
+                .chain([-900.0; 300]),
+        );
+        assert_eq!(running_speed_span(&speed), (100.0, 900.0));
+        speed.retain(|n| n.abs() > 150.0);
+        assert_eq!(running_speed_span(&speed), (500.0, 900.0));
+        // A machine that never runs has no running speed.
+        assert_eq!(running_speed_span(&[0.0; 10]), (0.0, 0.0));
+    }
 
     #[test]
     fn heat_sources_reach_the_parts_they_sit_on() {

@@ -1013,19 +1013,21 @@ impl Joint<'_> {
                 zty: zty.iter().map(|v| v.as_slice()).collect(),
                 yty: &yty,
             };
-            if let Some(limit) = f.sign {
+            if !f.limits.is_empty() {
                 let Some(beta) = gram.full_fit(&stats, self.blocks) else {
                     return f64::INFINITY;
                 };
-                let range = f.driver_columns(theta, limit.driver);
-                let limited: Vec<usize> = range.filter(|k| *k < columns.len()).collect();
-                let gain: f64 = limited
-                    .iter()
-                    .filter(|k| scales[**k] > 0.0)
-                    .map(|k| beta[others.len() + k] / scales[*k])
-                    .sum();
-                if !limited.is_empty() && !limit.admits(gain) {
-                    return f64::INFINITY;
+                for limit in &f.limits {
+                    let range = f.driver_columns(theta, limit.driver);
+                    let limited: Vec<usize> = range.filter(|k| *k < columns.len()).collect();
+                    let gain: f64 = limited
+                        .iter()
+                        .filter(|k| scales[**k] > 0.0)
+                        .map(|k| beta[others.len() + k] / scales[*k])
+                        .sum();
+                    if !limited.is_empty() && !limit.admits(gain) {
+                        return f64::INFINITY;
+                    }
                 }
             }
             gram.cv_sse(&stats, self.blocks).unwrap_or(f64::INFINITY)

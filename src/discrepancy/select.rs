@@ -235,23 +235,25 @@ fn score_all(
             zty.extend(member.columns.clone().map(|c| column_dots[c].as_slice()));
             let stats = TargetStats { zty, yty };
             let family = &problem.families[member.family];
-            if let Some(limit) = family.sign {
+            if !family.limits.is_empty() {
                 let beta = gram.full_fit(&stats, blocks)?;
-                // A member without the limited driver's columns (a nested simpler form) has
-                // nothing to limit.
-                let gain: f64 = family
-                    .driver_columns(&member.theta, limit.driver)
-                    .filter(|k| *k < member.columns.len())
-                    .map(|k| {
-                        let c = member.columns.start + k;
-                        beta[base_dots.len() + k] / problem.store.scale[c]
-                    })
-                    .sum();
-                let limited = family
-                    .driver_columns(&member.theta, limit.driver)
-                    .any(|k| k < member.columns.len());
-                if limited && !limit.admits(gain) {
-                    return None;
+                for limit in &family.limits {
+                    // A member without the limited driver's columns (a nested simpler form)
+                    // has nothing to limit.
+                    let gain: f64 = family
+                        .driver_columns(&member.theta, limit.driver)
+                        .filter(|k| *k < member.columns.len())
+                        .map(|k| {
+                            let c = member.columns.start + k;
+                            beta[base_dots.len() + k] / problem.store.scale[c]
+                        })
+                        .sum();
+                    let limited = family
+                        .driver_columns(&member.theta, limit.driver)
+                        .any(|k| k < member.columns.len());
+                    if limited && !limit.admits(gain) {
+                        return None;
+                    }
                 }
             }
             gram.cv_sse(&stats, blocks)
