@@ -899,11 +899,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         if thermal {
             // Forced convection: Nu ∝ Re^0.5 (laminar) to Re^0.8 (turbulent). A simulation
             // without it may have no forced convection at all (still air at every speed) or
-            // a constant coefficient for a nominal speed; the second form adds the excess
-            // itself, with the opposite sign, so that the extra cooling changes sign at the
-            // speed the simulation assumed. That form is offered only where the signs of
-            // both can be checked (a temperature's excess over room): elsewhere a free share
-            // of the target's own excess is any change of its thermal gain.
+            // a constant coefficient for a nominal speed; the second ("nominal") form lets the
+            // extra cooling change sign at the speed the simulation assumed. It is offered
+            // only where the signs of its terms can be checked (a temperature's excess over
+            // room): elsewhere its share of the target's own excess is any change of the
+            // target's thermal gain.
             let nominal_forms: &[f64] = if temperature { &[0.0, 1.0] } else { &[0.0] };
             let mut grid = Vec::new();
             for member in thermal_grid(&taus, &[0.5, 0.8]) {
