@@ -281,6 +281,25 @@ impl Family {
         driver * per_driver..(driver + 1) * per_driver
     }
 
+    /// Whether a member with nonlinear parameters `theta`, `width` columns and raw
+    /// coefficient `raw(k)` on its column k (`None` for a column that does not vary) fits
+    /// within every gain limit of the family. A member without a limited driver's columns (a
+    /// nested simpler form) has nothing to limit there.
+    pub fn within_limits(
+        &self,
+        theta: &[f64],
+        width: usize,
+        raw: impl Fn(usize) -> Option<f64>,
+    ) -> bool {
+        self.limits.iter().all(|limit| {
+            let columns: Vec<usize> = self
+                .driver_columns(theta, limit.driver)
+                .filter(|k| *k < width)
+                .collect();
+            columns.is_empty() || limit.admits(columns.iter().filter_map(|&k| raw(k)).sum())
+        })
+    }
+
     /// The lag time constants of a member, s (one or two).
     pub fn lags(&self, theta: &[f64]) -> Vec<f64> {
         let tau = theta.first().copied().unwrap_or(0.0);

@@ -1017,17 +1017,9 @@ impl Joint<'_> {
                 let Some(beta) = gram.full_fit(&stats, self.blocks) else {
                     return f64::INFINITY;
                 };
-                for limit in &f.limits {
-                    let range = f.driver_columns(theta, limit.driver);
-                    let limited: Vec<usize> = range.filter(|k| *k < columns.len()).collect();
-                    let gain: f64 = limited
-                        .iter()
-                        .filter(|k| scales[**k] > 0.0)
-                        .map(|k| beta[others.len() + k] / scales[*k])
-                        .sum();
-                    if !limited.is_empty() && !limit.admits(gain) {
-                        return f64::INFINITY;
-                    }
+                let raw = |k: usize| (scales[k] > 0.0).then(|| beta[others.len() + k] / scales[k]);
+                if !f.within_limits(theta, columns.len(), raw) {
+                    return f64::INFINITY;
                 }
             }
             gram.cv_sse(&stats, self.blocks).unwrap_or(f64::INFINITY)

@@ -237,23 +237,11 @@ fn score_all(
             let family = &problem.families[member.family];
             if !family.limits.is_empty() {
                 let beta = gram.full_fit(&stats, blocks)?;
-                for limit in &family.limits {
-                    // A member without the limited driver's columns (a nested simpler form)
-                    // has nothing to limit.
-                    let gain: f64 = family
-                        .driver_columns(&member.theta, limit.driver)
-                        .filter(|k| *k < member.columns.len())
-                        .map(|k| {
-                            let c = member.columns.start + k;
-                            beta[base_dots.len() + k] / problem.store.scale[c]
-                        })
-                        .sum();
-                    let limited = family
-                        .driver_columns(&member.theta, limit.driver)
-                        .any(|k| k < member.columns.len());
-                    if limited && !limit.admits(gain) {
-                        return None;
-                    }
+                let raw = |k: usize| {
+                    Some(beta[base_dots.len() + k] / problem.store.scale[member.columns.start + k])
+                };
+                if !family.within_limits(&member.theta, member.columns.len(), raw) {
+                    return None;
                 }
             }
             gram.cv_sse(&stats, blocks)
