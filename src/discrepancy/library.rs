@@ -154,6 +154,62 @@ pub struct AxisSignals {
     pub sim_current: Option<Vec<f64>>,
     /// Direction of motion (smooth sign of the speed).
     pub direction: Vec<f64>,
+    /// (|n|/1000)^p for the exponents of [`SPEED_EXPONENTS`], computed once: every member of
+    /// a speed-driven family needs one, and the power is most of what building it costs.
+    speed_powers: std::sync::Arc<Vec<(f64, Vec<f64>)>>,
+}
+
+/// Exponents of the speed (in 1000 rpm) that the library's physics uses: forced convection
+/// (laminar 0.5, turbulent 0.8), Palmgren's drag torque (2/3) and its heat (5/3).
+const SPEED_EXPONENTS: [f64; 4] = [0.5, 0.8, 2.0 / 3.0, 5.0 / 3.0];
+
+impl AxisSignals {
+    /// The axis's signals, with the powers of its speed that the library uses.
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        axis: AxisId,
+        speed: Vec<f64>,
+        current: Option<Vec<f64>>,
+        torque: Option<Vec<f64>>,
+        position: Option<Vec<f64>>,
+        stator: Option<Vec<f64>>,
+        sim_current: Option<Vec<f64>>,
+        direction: Vec<f64>,
+    ) -> AxisSignals {
+        let speed_powers = SPEED_EXPONENTS
+            .iter()
+            .map(|&p| (p, speed_power(&speed, p)))
+            .collect();
+        AxisSignals {
+            axis,
+            speed,
+            current,
+            torque,
+            position,
+            stator,
+            sim_current,
+            direction,
+            speed_powers: std::sync::Arc::new(speed_powers),
+        }
+    }
+
+    /// (|n|/1000)^`exponent` row by row.
+    fn speed_power(&self, exponent: f64) -> std::borrow::Cow<'_, [f64]> {
+        match self.speed_powers.iter().find(|(p, _)| *p == exponent) {
+            Some((_, powers)) if powers.len() == self.speed.len() => {
+                std::borrow::Cow::Borrowed(powers)
+            }
+            _ => std::borrow::Cow::Owned(speed_power(&self.speed, exponent)),
+        }
+    }
+}
+
+/// (|n|/1000)^`exponent` of a speed in rpm, row by row.
+fn speed_power(speed: &[f64], exponent: f64) -> Vec<f64> {
+    speed
+        .iter()
+        .map(|n| (n.abs() / 1000.0).powf(exponent))
+        .collect()
 }
 
 /// Everything the corrections are built from, on the aligned full-rate rows.
@@ -360,16 +416,16 @@ impl Context {
                     .real_column(&axis_column(axis, Quantity::Position))
                     .filter(|_| axis.is_linear());
                 let direction = direction_of(&speed);
-                Some(AxisSignals {
+                Some(AxisSignals::new(
                     axis,
-                    current: aligned.real_column(&axis_column(axis, Quantity::Current)),
-                    sim_current: aligned.sim_column(&axis_column(axis, Quantity::Current)),
-                    torque: aligned.real_column(&axis_column(axis, Quantity::Torque)),
-                    stator: aligned.real_column(&axis_column(axis, Quantity::StatorTemp)),
-                    position,
                     speed,
+                    aligned.real_column(&axis_column(axis, Quantity::Current)),
+                    aligned.real_column(&axis_column(axis, Quantity::Torque)),
+                    position,
+                    aligned.real_column(&axis_column(axis, Quantity::StatorTemp)),
+                    aligned.sim_column(&axis_column(axis, Quantity::Current)),
                     direction,
-                })
+                ))
             })
             .collect();
         if let Some(own) = own_axis
@@ -960,11 +1016,9 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             0.0
                         }
                     };
-                    let spin: Vec<f64> = a
-                        .speed
-                        .iter()
-                        .map(|n| (n.abs() / 1000.0).powf(theta[1]) - from(slow))
-                        .collect();
+                    let floor = from(slow);
+                    let spin: Vec<f64> =
+                        a.speed_power(theta[1]).iter().map(|p| p - floor).collect();
                     let cooling: Vec<f64> =
                         spin.iter().zip(&ctx.excess).map(|(s, e)| s * e).collect();
                     // The extra cooling lowers the very temperature it acts on. Once a
@@ -1113,10 +1167,10 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             // convection, ∝ n^0.8): the feedback term of the heat path.
                             let warmed = accumulated(ctx, &heat, theta[0], Start::Rest);
                             let shed = a
-                                .speed
+                                .speed_power(0.8)
                                 .iter()
                                 .zip(&warmed)
-                                .map(|(n, w)| (n.abs() / 1000.0).powf(0.8) * w)
+                                .map(|(p, w)| p * w)
                                 .collect();
                             vec![heat, shed]
                         }),
@@ -1168,10 +1222,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         // (ν n)^(2/3), so the heat ∝ ν^(2/3) n^(5/3)) — the drive's power also
                         // carries the cut, which no lubricant changes.
                         let power: Vec<f64> = if drag_heat {
-                            a.speed
-                                .iter()
-                                .map(|n| (n.abs() / 1000.0).powf(5.0 / 3.0))
-                                .collect()
+                            a.speed_power(5.0 / 3.0).into_owned()
                         } else {
                             let Some(torque) = a.torque.as_ref() else {
                                 return vec![];
@@ -1331,13 +1382,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         // Palmgren's viscous drag grows as (ν n)^(2/3); the lubricant follows
                         // the motor's warmth with its own lag.
                         let drag: Vec<f64> = a
-                            .speed
+                            .speed_power(2.0 / 3.0)
                             .iter()
                             .zip(&a.direction)
                             .enumerate()
-                            .map(|(i, (n, d))| {
-                                oriented(a, *d, i) * (n.abs() / 1000.0).powf(2.0 / 3.0)
-                            })
+                            .map(|(i, (p, d))| oriented(a, *d, i) * p)
                             .collect();
                         if theta[0] <= 0.0 {
                             return vec![drag];
@@ -1724,15 +1773,17 @@ mod tests {
                 }
             })
             .collect();
-        let axis = |real: Vec<f64>| AxisSignals {
-            axis: AxisId::X,
-            speed: direction.iter().map(|d| 300.0 * d).collect(),
-            current: Some(real),
-            torque: None,
-            position: None,
-            stator: None,
-            sim_current: Some(sim.clone()),
-            direction: direction.clone(),
+        let axis = |real: Vec<f64>| {
+            AxisSignals::new(
+                AxisId::X,
+                direction.iter().map(|d| 300.0 * d).collect(),
+                Some(real),
+                None,
+                None,
+                None,
+                Some(sim.clone()),
+                direction.clone(),
+            )
         };
         let with_friction: Vec<f64> = sim
             .iter()
