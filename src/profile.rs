@@ -231,13 +231,14 @@ impl Default for WarmupSettings {
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
     /// The file could not be read or written.
-    #[error("{path}: {source}")]
+    // The operating system's error is part of the message and not also its `source`: the
+    // command line prints an error's whole chain, which then said it twice.
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: String,
         /// The operating system's error.
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The TOML does not parse or does not match the profile's fields.
     #[error("{path}: {message}")]
@@ -263,9 +264,9 @@ impl MachineProfile {
     /// Reads and validates a profile file.
     pub fn load(path: &Path) -> Result<MachineProfile, ProfileError> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| ProfileError::Io {
             path: name.clone(),
-            source,
+            error,
         })?;
         Self::from_toml(&text, &name)
     }
@@ -287,7 +288,7 @@ impl MachineProfile {
             path: name.clone(),
             message: e.to_string(),
         })?;
-        std::fs::write(path, text).map_err(|source| ProfileError::Io { path: name, source })
+        std::fs::write(path, text).map_err(|error| ProfileError::Io { path: name, error })
     }
 
     /// The profile of the twin's default machine, without calibration.

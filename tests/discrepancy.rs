@@ -855,6 +855,31 @@ fn the_command_reports_bad_input_in_one_line() {
         "{err}"
     );
     let _ = stdout(&missing);
+    // A file that is not there: which one, and the system's reason once (the two files are
+    // read side by side, so each role must still be named right).
+    let absent = dir.path().join("absent.csv");
+    for (sim, real, role) in [
+        (&absent, &a, "the simulation"),
+        (&a, &absent, "the real recording"),
+    ] {
+        let run = servosight(&[
+            "discrepancy",
+            "--sim",
+            arg(sim),
+            "--real",
+            arg(real),
+            "--target",
+            "S.stator_temp_C",
+        ]);
+        assert!(!run.status.success());
+        let err = stderr(&run);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.contains(&format!("cannot read {role}")) && err.contains("absent.csv"),
+            "{err}"
+        );
+        assert_eq!(err.matches("(os error").count(), 1, "{err}");
+    }
 }
 
 /// Tally of a group of cases.

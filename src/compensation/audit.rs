@@ -104,13 +104,14 @@ pub struct EntryContent {
 #[derive(Debug, thiserror::Error)]
 pub enum AuditError {
     /// The file could not be read or written.
-    #[error("{path}: {source}")]
+    // The operating system's error is part of the message and not also its `source`: the
+    // command line prints an error's whole chain, which then said it twice.
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: String,
-        /// The error.
-        #[source]
-        source: std::io::Error,
+        /// The operating system's error.
+        error: std::io::Error,
     },
     /// The chain is broken: the log was edited.
     #[error("{path}: line {line}: {reason}")]
@@ -145,9 +146,9 @@ fn entry_hash(entry: &AuditEntry) -> String {
 /// Checks every line of the log; the first broken one is the error.
 pub fn verify(path: &Path) -> Result<VerifyReport, AuditError> {
     let name = path.display().to_string();
-    let file = File::open(path).map_err(|source| AuditError::Io {
+    let file = File::open(path).map_err(|error| AuditError::Io {
         path: name.clone(),
-        source,
+        error,
     })?;
     let mut prev_hash = GENESIS_HASH.to_string();
     let mut entries = 0u64;
@@ -158,9 +159,9 @@ pub fn verify(path: &Path) -> Result<VerifyReport, AuditError> {
             line: line_no,
             reason,
         };
-        let line = line.map_err(|source| AuditError::Io {
+        let line = line.map_err(|error| AuditError::Io {
             path: name.clone(),
-            source,
+            error,
         })?;
         let entry: AuditEntry =
             serde_json::from_str(&line).map_err(|e| broken(format!("not an audit entry: {e}")))?;
@@ -220,9 +221,9 @@ impl AuditLog {
             .create(true)
             .append(true)
             .open(path)
-            .map_err(|source| AuditError::Io {
+            .map_err(|error| AuditError::Io {
                 path: path.display().to_string(),
-                source,
+                error,
             })?;
         Ok(AuditLog {
             path: path.to_path_buf(),
@@ -260,9 +261,9 @@ impl AuditLog {
         entry.hash = entry_hash(&entry);
         let mut line = serde_json::to_string(&entry).unwrap_or_default();
         line.push('\n');
-        let io = |source| AuditError::Io {
+        let io = |error| AuditError::Io {
             path: self.path.display().to_string(),
-            source,
+            error,
         };
         self.file.write_all(line.as_bytes()).map_err(io)?;
         self.file.sync_data().map_err(io)?;
@@ -275,9 +276,9 @@ impl AuditLog {
     pub fn entries(&self) -> Result<Vec<AuditEntry>, AuditError> {
         verify(&self.path)?;
         let name = self.path.display().to_string();
-        let text = std::fs::read_to_string(&self.path).map_err(|source| AuditError::Io {
+        let text = std::fs::read_to_string(&self.path).map_err(|error| AuditError::Io {
             path: name.clone(),
-            source,
+            error,
         })?;
         text.lines()
             .enumerate()

@@ -50,13 +50,14 @@ pub struct Credentials {
 #[derive(Debug, thiserror::Error)]
 pub enum CredentialError {
     /// The file could not be read or written.
-    #[error("{path}: {source}")]
+    // The operating system's error is part of the message and not also its `source`: the
+    // command line prints an error's whole chain, which then said it twice.
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: String,
-        /// The error.
-        #[source]
-        source: std::io::Error,
+        /// The operating system's error.
+        error: std::io::Error,
     },
     /// The file is not valid TOML of this shape.
     #[error("{path}: {message}")]
@@ -85,9 +86,9 @@ pub enum CredentialError {
 impl Credentials {
     /// Loads the users file.
     pub fn load(path: &Path) -> Result<Credentials, CredentialError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CredentialError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| CredentialError::Io {
             path: path.display().to_string(),
-            source,
+            error,
         })?;
         toml::from_str(&text).map_err(|e| CredentialError::Format {
             path: path.display().to_string(),
@@ -110,9 +111,9 @@ impl Credentials {
             path: path.display().to_string(),
             message: e.to_string(),
         })?;
-        std::fs::write(path, text).map_err(|source| CredentialError::Io {
+        std::fs::write(path, text).map_err(|error| CredentialError::Io {
             path: path.display().to_string(),
-            source,
+            error,
         })
     }
 

@@ -186,7 +186,7 @@ impl Recorder {
         let source = path.display().to_string();
         let file = File::create(&path).map_err(|e| RecordingError::Io {
             source_name: source.clone(),
-            source: e,
+            error: e,
         })?;
         self.written = Arc::new(AtomicU64::new(0));
         let counting = CountingFile {
@@ -234,7 +234,7 @@ impl Recorder {
             self.stats.frames_not_written += 1;
             return Err(RecorderError::Recording(RecordingError::Io {
                 source_name: self.config.path.display().to_string(),
-                source: std::io::Error::other("the recorder has been closed"),
+                error: std::io::Error::other("the recorder has been closed"),
             }));
         };
         if let Err(error) = writer.write_row(&self.row) {
@@ -284,7 +284,7 @@ pub fn read_possibly_truncated(
 ) -> Result<(crate::signal::Recording, Option<RecordingError>), RecordingError> {
     let bytes = std::fs::read(path).map_err(|e| RecordingError::Io {
         source_name: path.display().to_string(),
-        source: e,
+        error: e,
     })?;
     let complete_len = match bytes.last() {
         Some(b'\n') | None => bytes.len(),

@@ -40,7 +40,7 @@ impl RecordingReader<File> {
         let source = path.display().to_string();
         let file = File::open(path).map_err(|source_err| RecordingError::Io {
             source_name: source.clone(),
-            source: source_err,
+            error: source_err,
         })?;
         Self::from_reader(file, &source)
     }
@@ -52,7 +52,7 @@ impl<R: Read> RecordingReader<R> {
         let mut buffered = BufReader::with_capacity(1 << 16, reader);
         let io_err = |e: io::Error| RecordingError::Io {
             source_name: source.to_string(),
-            source: e,
+            error: e,
         };
         let mut metadata = Vec::new();
         let mut line_no: u64 = 0;
@@ -274,7 +274,7 @@ fn csv_error(error: csv::Error, source: &str, lines_before_header: u64) -> Recor
     match error.into_kind() {
         csv::ErrorKind::Io(e) => RecordingError::Io {
             source_name: source.to_string(),
-            source: e,
+            error: e,
         },
         other => RecordingError::Malformed {
             at: Location {
@@ -308,7 +308,7 @@ impl RecordingWriter<File> {
         let source = path.display().to_string();
         let file = File::create(path).map_err(|e| RecordingError::Io {
             source_name: source.clone(),
-            source: e,
+            error: e,
         })?;
         Self::new(file, &source, metadata, schema)
     }
@@ -330,16 +330,16 @@ impl<W: Write> RecordingWriter<W> {
         let mut header = csv::Writer::from_writer(Vec::new());
         let header_io = |e: csv::Error| RecordingError::Io {
             source_name: source.to_string(),
-            source: io::Error::other(e),
+            error: io::Error::other(e),
         };
         header.write_record(schema.names()).map_err(header_io)?;
         head.extend_from_slice(&header.into_inner().map_err(|e| RecordingError::Io {
             source_name: source.to_string(),
-            source: e.into_error(),
+            error: e.into_error(),
         })?);
         out.write_all(&head).map_err(|e| RecordingError::Io {
             source_name: source.to_string(),
-            source: e,
+            error: e,
         })?;
         Ok(RecordingWriter {
             out,
@@ -370,7 +370,7 @@ impl<W: Write> RecordingWriter<W> {
             .write_all(&self.line)
             .map_err(|e| RecordingError::Io {
                 source_name: self.source.clone(),
-                source: e,
+                error: e,
             })?;
         self.previous_time = Some(row[0]);
         self.rows_written += 1;
@@ -386,7 +386,7 @@ impl<W: Write> RecordingWriter<W> {
     pub fn flush(&mut self) -> Result<(), RecordingError> {
         self.out.flush().map_err(|e| RecordingError::Io {
             source_name: self.source.clone(),
-            source: e,
+            error: e,
         })
     }
 
@@ -395,7 +395,7 @@ impl<W: Write> RecordingWriter<W> {
         let source = self.source;
         self.out.into_inner().map_err(|e| RecordingError::Io {
             source_name: source,
-            source: e.into_error(),
+            error: e.into_error(),
         })
     }
 }

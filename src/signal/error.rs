@@ -28,13 +28,14 @@ impl fmt::Display for Location {
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
     /// The file could not be opened, read or written.
-    #[error("{source_name}: {source}")]
+    // The operating system's error is part of the message and not also its `source`: the
+    // command line prints an error's whole chain, which then said it twice.
+    #[error("{source_name}: {error}")]
     Io {
         /// The file name.
         source_name: String,
         /// The operating system's error.
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The file has no header row.
     #[error("{source_name}: no header row (the file is empty or holds only metadata)")]

@@ -382,13 +382,14 @@ pub enum ExportError {
     #[error("nothing to export: choose at least one channel with data in the window")]
     Empty,
     /// The file could not be written.
-    #[error("{path}: {source}")]
+    // The operating system's error is part of the message and not also its `source`: the
+    // command line prints an error's whole chain, which then said it twice.
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: String,
-        /// The error.
-        #[source]
-        source: std::io::Error,
+        /// The operating system's error.
+        error: std::io::Error,
     },
 }
 
@@ -401,9 +402,9 @@ pub fn export_csv(view: &TrendsView, path: &Path) -> Result<usize, ExportError> 
     let Some(first) = series.first() else {
         return Err(ExportError::Empty);
     };
-    let io = |source| ExportError::Io {
+    let io = |error| ExportError::Io {
         path: path.display().to_string(),
-        source,
+        error,
     };
     let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
     let decimated = first.band.is_some();
