@@ -50,16 +50,23 @@ const LAG_SEGMENTS: usize = 8;
 /// Shortest stretch worth splitting a lag into (below it the splitting costs more than it saves).
 const MIN_SEGMENT_ROWS: usize = 256;
 
-/// The common step of a regular time grid (every step bit for bit the same), or `None`.
+/// The step of a regular time grid, or `None`. Steps count as one when they differ by no more
+/// than the time stamps themselves can tell apart: a stamp read from its decimal form carries
+/// the rounding of its binary one, a unit or two in its last place, so consecutive 0.1 s steps
+/// of a 10 Hz record differ in their last bits (and taken bit for bit, no 10 Hz record would
+/// be regular). The step returned is the mean one, (last − first) / (rows − 1).
 fn regular_step(time: &[f64]) -> Option<f64> {
-    let step = match time {
-        [a, b, ..] => b - a,
+    let (first, last) = match time {
+        [first, .., last] => (*first, *last),
         _ => return None,
     };
+    let step = (last - first) / (time.len() - 1) as f64;
+    let resolution = 4.0 * f64::EPSILON * first.abs().max(last.abs());
     // Without an early exit, so that the comparison vectorises.
-    time.windows(2)
-        .fold(true, |regular, w| regular & (w[1] - w[0] == step))
-        .then_some(step)
+    let regular = time.windows(2).fold(true, |regular, w| {
+        regular & ((w[1] - w[0] - step).abs() <= resolution)
+    });
+    (regular && step > 0.0).then_some(step)
 }
 
 /// The lag on a regular grid, whose first row adds nothing (its step is zero) and every later
@@ -604,5 +611,34 @@ mod tests {
         }
         let lag = lowpass_from(&uneven, &step_input, tau, 0.0);
         assert_eq!(lag, lowpass_per_row(&uneven, &step_input, tau, 0.0));
+    }
+
+    /// Time stamps of a 10 Hz record read from their decimal form differ from step to step in
+    /// their last bits; the grid is still regular, and its lag is the row-by-row one to rounding.
+    #[test]
+    fn a_decimal_ten_hertz_grid_is_regular() {
+        let n = 100_000;
+        let time: Vec<f64> = (0..n)
+            .map(|i| {
+                format!("{:.1}", i as f64 / 10.0)
+                    .parse::<f64>()
+                    .unwrap_or(f64::NAN)
+            })
+            .collect();
+        let steps: std::collections::BTreeSet<u64> =
+            time.windows(2).map(|w| (w[1] - w[0]).to_bits()).collect();
+        assert!(steps.len() > 1, "the stamps' rounding shows in the steps");
+        let step = regular_step(&time).unwrap_or(f64::NAN);
+        assert!((step - 0.1).abs() < 1e-15, "{step}");
+        let values: Vec<f64> = (0..n).map(|i| (i as f64 * 1e-3).sin()).collect();
+        let fast = lowpass_from(&time, &values, 60.0, 0.0);
+        let slow = lowpass_per_row(&time, &values, 60.0, 0.0);
+        for (a, b) in fast.iter().zip(&slow) {
+            assert!((a - b).abs() <= 1e-12, "{a} vs {b}");
+        }
+        // One sample late by a millisecond is a step of its own: not regular.
+        let mut late = time.clone();
+        late[n / 2] += 1e-3;
+        assert_eq!(regular_step(&late), None);
     }
 }
