@@ -1398,6 +1398,84 @@ fn a_drift_indistinguishable_from_a_gain_slip_is_absorbed_as_calibration() {
     assert!(report.improved.rmse < 1.5 * pair.noise_sigma);
 }
 
+/// What a report says must stay the physics it names, though the joint refit moves every
+/// coefficient (and, for a correction built on the part's own temperature, the state it acts
+/// on): the room's steady-state gain on a part stays within (0, 1.05] K/K, and a convective
+/// cooling stays a cooling. Both pairs are from the sweep (`scripts/discrepancy_sweep.py`),
+/// where, before the joint refit kept each correction within its limits, the room on the
+/// spindle housing came out at 1.058 K/K and a "cooling" warmed the stator by 33.9 % at
+/// 1000 rpm.
+#[test]
+fn corrections_stay_within_their_physics_in_the_joint_fit() {
+    for (omitted, target, seed) in [
+        (
+            vec![Effect::AmbientTemperature],
+            reference_column(AxisId::S, "housing_temp_C", None),
+            301,
+        ),
+        (
+            vec![Effect::AmbientTemperature, Effect::ThermalInertia],
+            axis_column(AxisId::S, Quantity::StatorTemp),
+            302,
+        ),
+    ] {
+        let case = Case {
+            omitted,
+            target: target.clone(),
+            machine: vec![],
+            real_only: vec![],
+            noise: Noise::White,
+            hours: 5.0,
+            seed,
+        };
+        let pair = make_pair(&case);
+        let report = analyse(&pair.sim, &pair.real, &target, &Options::default()).unwrap();
+        assert!(!report.findings.is_empty(), "{}", report.summary());
+        for finding in &report.findings {
+            let p = &finding.parameters;
+            match finding.physics.as_str() {
+                "ambient_temperature" => {
+                    let gain = p["gain_per_K"];
+                    assert!(gain > 0.0 && gain <= 1.05, "{}", report.summary());
+                }
+                "speed_dependent_cooling" => {
+                    let change = p["relative_change_at_1000rpm"];
+                    assert!(change < 0.0, "{}", report.summary());
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+/// The room and copper heat concealed together on the spindle stator (the grid's seed 203):
+/// copper heat, fitted first, took the room's slow swing as negative heating ("I²R heating of
+/// −4.9e-2 °C/A²") and the room was never tested on what was left. Kept positive, as heating
+/// is, the copper correction leaves the room's swing in the residual, and the selection goes
+/// on and names it.
+#[test]
+fn a_correction_brought_within_its_limits_lets_the_selection_go_on() {
+    let case = two_effect_cases(203, Noise::White)
+        .into_iter()
+        .find(|c| c.omitted == [Effect::AmbientTemperature, Effect::CopperLoss])
+        .expect("the grid's room + copper pair");
+    let pair = make_pair(&case);
+    let report = analyse(&pair.sim, &pair.real, &case.target, &Options::default()).unwrap();
+    let parameters = servosight::discrepancy::parameters_by_physics(&report);
+    let copper = parameters.get("copper_loss");
+    assert!(
+        copper.is_some_and(|p| p["per_A2"] > 0.0),
+        "{}",
+        report.summary()
+    );
+    assert!(
+        parameters.contains_key("ambient_temperature"),
+        "{}",
+        report.summary()
+    );
+    assert!(report.improved.rmse < 1.5 * pair.noise_sigma);
+}
+
 /// An observer hears the analysis advance phase by phase (the fraction never falls) and
 /// changes nothing in the result: the report is the same, to the last bit, as without one.
 /// Saying stop ends the analysis with `Cancelled` at its next stopping point — at the start,

@@ -54,7 +54,7 @@ pub use report::{
 use align::Aligned;
 use cv::{Blocks, ModelGram, TargetStats, least_squares};
 use library::{Context, Family, Kind, families};
-use select::{Member, Problem, Step, Store, stepwise};
+use select::{JointModel, Member, Problem, Step, Store, stepwise};
 use series::{bin_means, bin_ranges, integrated_autocorrelation, mean};
 
 /// Why an analysis could not run.
@@ -404,6 +404,7 @@ fn analyse_watched(
     // the state-dependent ones are rebuilt on; both are updated jointly after each acceptance.
     let mut joint = Joint {
         families: &families,
+        members: &members,
         blocks: &blocks,
         highpass_window,
         ctx: &ctx,
@@ -425,7 +426,7 @@ fn analyse_watched(
             store: &store,
         },
         options,
-        &mut |member, base| joint.accept(members[member].family, &members[member].theta, base),
+        &mut joint,
         watch,
         SELECT_AT..REFIT_AT,
     )?;
@@ -800,6 +801,18 @@ const RESELECT_REFINED: usize = 3;
 /// Most fixed-point iterations of the state correction per round.
 const STATE_ITERATIONS: usize = 12;
 
+/// Most times the joint refit chooses a correction again to keep it within its gain limits
+/// before withdrawing it ([`Joint::keep_within_limits`]).
+const LIMIT_ROUNDS: usize = 2;
+
+/// A member's fit in the joint model.
+struct MemberFit {
+    /// Held-out sum of squared errors over the selection's blocks.
+    held_out_sse: f64,
+    /// Whether its coefficients lie within its family's gain limits.
+    within_limits: bool,
+}
+
 /// The accepted corrections, refitted jointly.
 ///
 /// After a correction is accepted, every accepted correction's time constant (or delay) is
@@ -811,6 +824,8 @@ const STATE_ITERATIONS: usize = 12;
 /// once the second is in the model.
 struct Joint<'a> {
     families: &'a [Family],
+    /// The selection's candidate members (what [`JointModel::accept`] is given).
+    members: &'a [Member],
     /// The selection's blocks (on the binned rows), for choosing members by held-out error.
     blocks: &'a Blocks,
     /// Moving-average window of the selection's high-passed view, bins.
@@ -878,12 +893,7 @@ impl Joint<'_> {
     /// Refits every active correction: time constants one member at a time, and the state
     /// correction to its fixed point.
     fn refit_jointly(&mut self) {
-        let ones = vec![1.0; self.y.len()];
-        let stateful = self
-            .accepted
-            .iter()
-            .zip(&self.active)
-            .any(|((f, _), a)| *a && self.families[*f].state);
+        let stateful = self.stateful();
         if !stateful {
             self.state = None;
         }
@@ -903,8 +913,7 @@ impl Joint<'_> {
                 if !self.active[k] {
                     continue;
                 }
-                let mut others = vec![ones.clone()];
-                others.extend(self.columns(&state_ctx, Some(k)));
+                let others = self.others(&state_ctx, k);
                 let (family, theta) = &self.accepted[k];
                 let family_ref = &self.families[*family];
                 let ctx = if family_ref.state {
@@ -921,6 +930,14 @@ impl Joint<'_> {
             }
             self.settle_state();
         }
+    }
+
+    /// Whether an active correction is built on the target's own state.
+    fn stateful(&self) -> bool {
+        self.accepted
+            .iter()
+            .zip(&self.active)
+            .any(|((f, _), a)| *a && self.families[*f].state)
     }
 
     /// Backward elimination in the joint model: with more than one correction in it, the one
@@ -978,6 +995,110 @@ impl Joint<'_> {
         }
     }
 
+    /// How the member `theta` of `family` fits with `others` (the intercept first) in the
+    /// model: its held-out error, and whether its coefficients lie within the family's gain
+    /// limits. `None` when its columns cannot be built or the model cannot be fitted.
+    fn member_fit(
+        &self,
+        family: usize,
+        theta: &[f64],
+        others: &[Vec<f64>],
+        ctx: &Context,
+    ) -> Option<MemberFit> {
+        let f = &self.families[family];
+        let columns = build(f, ctx, theta);
+        if columns.is_empty() {
+            return None;
+        }
+        let mut standard = Vec::with_capacity(columns.len());
+        let mut scales = Vec::with_capacity(columns.len());
+        for c in &columns {
+            let (z, scale) = select::standardise(&bin_means(c, self.bins));
+            standard.push(z);
+            scales.push(scale.unwrap_or(0.0));
+        }
+        let mut design: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
+        design.extend(standard.iter().map(|c| c.as_slice()));
+        let gram = ModelGram::new(&design, self.blocks);
+        let zty: Vec<Vec<f64>> = design.iter().map(|c| self.blocks.dots(c, self.y)).collect();
+        let yty = self.blocks.dots(self.y, self.y);
+        let stats = TargetStats {
+            zty: zty.iter().map(|v| v.as_slice()).collect(),
+            yty: &yty,
+        };
+        let within_limits = f.limits.is_empty() || {
+            let beta = gram.full_fit(&stats, self.blocks)?;
+            let raw = |k: usize| (scales[k] > 0.0).then(|| beta[others.len() + k] / scales[k]);
+            f.within_limits(theta, columns.len(), raw)
+        };
+        Some(MemberFit {
+            held_out_sse: gram.cv_sse(&stats, self.blocks)?,
+            within_limits,
+        })
+    }
+
+    /// Keeps every correction of the joint model within its physics' gain limits. The
+    /// selection admitted each within them, but the joint refit moves every coefficient and,
+    /// for a state-dependent correction, the state it acts on: a convective cooling fitted
+    /// beside another correction could end up warming the part, and its explanation would then
+    /// name physics the fit contradicts. A correction outside its limits is chosen again among
+    /// the members they admit (the state settled again after), at most [`LIMIT_ROUNDS`]
+    /// times; one still outside them is withdrawn. Returns whether one was withdrawn.
+    fn keep_within_limits(&mut self, stateful: bool) -> bool {
+        for _ in 0..LIMIT_ROUNDS {
+            let outside = self.outside_limits();
+            if outside.is_empty() || self.watch.stopped() {
+                return false;
+            }
+            let state_ctx = self.state_context();
+            for k in outside {
+                let others = self.others(&state_ctx, k);
+                let (family, theta) = self.accepted[k].clone();
+                let ctx = if self.families[family].state {
+                    &state_ctx
+                } else {
+                    self.ctx
+                };
+                self.accepted[k].1 = self.reselect(family, &theta, &others, ctx);
+            }
+            if stateful {
+                self.settle_state();
+            }
+        }
+        let outside = self.outside_limits();
+        for &k in &outside {
+            self.active[k] = false;
+        }
+        !outside.is_empty()
+    }
+
+    /// The active corrections whose coefficients in the joint model break their family's
+    /// gain limits.
+    fn outside_limits(&self) -> Vec<usize> {
+        let state_ctx = self.state_context();
+        (0..self.accepted.len())
+            .filter(|&k| self.active[k] && !self.families[self.accepted[k].0].limits.is_empty())
+            .filter(|&k| {
+                let others = self.others(&state_ctx, k);
+                let (family, theta) = &self.accepted[k];
+                let ctx = if self.families[*family].state {
+                    &state_ctx
+                } else {
+                    self.ctx
+                };
+                self.member_fit(*family, theta, &others, ctx)
+                    .is_some_and(|fit| !fit.within_limits)
+            })
+            .collect()
+    }
+
+    /// The intercept and every active correction but `skip`, as the joint model's columns.
+    fn others(&self, state_ctx: &Context, skip: usize) -> Vec<Vec<f64>> {
+        let mut others = vec![vec![1.0; self.y.len()]];
+        others.extend(self.columns(state_ctx, Some(skip)));
+        others
+    }
+
     /// The member of `family` (its grid and the current parameters `current`) that predicts
     /// the held-out blocks best with `others` (the intercept first) in the model, among those
     /// the family's gain limits admit. The stepwise step chose the member before the other
@@ -993,36 +1114,10 @@ impl Joint<'_> {
         let mut grid: Vec<Vec<f64>> = f.grid.clone();
         grid.push(current.to_vec());
         let score = |theta: &Vec<f64>| -> f64 {
-            let columns = build(f, ctx, theta);
-            if columns.is_empty() {
-                return f64::INFINITY;
+            match self.member_fit(family, theta, others, ctx) {
+                Some(fit) if fit.within_limits => fit.held_out_sse,
+                _ => f64::INFINITY,
             }
-            let mut standard = Vec::with_capacity(columns.len());
-            let mut scales = Vec::with_capacity(columns.len());
-            for c in &columns {
-                let (z, scale) = select::standardise(&bin_means(c, self.bins));
-                standard.push(z);
-                scales.push(scale.unwrap_or(0.0));
-            }
-            let mut design: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
-            design.extend(standard.iter().map(|c| c.as_slice()));
-            let gram = ModelGram::new(&design, self.blocks);
-            let zty: Vec<Vec<f64>> = design.iter().map(|c| self.blocks.dots(c, self.y)).collect();
-            let yty = self.blocks.dots(self.y, self.y);
-            let stats = TargetStats {
-                zty: zty.iter().map(|v| v.as_slice()).collect(),
-                yty: &yty,
-            };
-            if !f.limits.is_empty() {
-                let Some(beta) = gram.full_fit(&stats, self.blocks) else {
-                    return f64::INFINITY;
-                };
-                let raw = |k: usize| (scales[k] > 0.0).then(|| beta[others.len() + k] / scales[k]);
-                if !f.within_limits(theta, columns.len(), raw) {
-                    return f64::INFINITY;
-                }
-            }
-            gram.cv_sse(&stats, self.blocks).unwrap_or(f64::INFINITY)
         };
         let scored = series::parallel_map(&grid, score);
         let mut ranked: Vec<(Vec<f64>, f64)> = grid
@@ -1135,6 +1230,32 @@ impl Joint<'_> {
                 return;
             }
         }
+    }
+}
+
+impl JointModel for Joint<'_> {
+    fn accept(&mut self, member: usize, base: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let Member { family, theta, .. } = &self.members[member];
+        Joint::accept(self, *family, theta, base)
+    }
+
+    /// Keeps every correction within its physics' gain limits
+    /// ([`Joint::keep_within_limits`]), refitting jointly after each withdrawal. The selection
+    /// asks for this when it would stop, not after each step: on the way, a first correction
+    /// fitted alone may stand outside its limits until the effect it was taking a share of
+    /// enters the model (copper heat beside the room on a stator: negative until the room was
+    /// in, positive after).
+    fn settle(&mut self) -> Option<Vec<Vec<f64>>> {
+        if self.outside_limits().is_empty() {
+            return None;
+        }
+        while self.keep_within_limits(self.stateful()) {
+            self.refit_jointly();
+            while self.prune() {
+                self.refit_jointly();
+            }
+        }
+        Some(self.columns(&self.state_context(), None))
     }
 }
 

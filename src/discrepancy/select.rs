@@ -250,9 +250,18 @@ fn score_all(
     (sse0, scored)
 }
 
-/// Refines an accepted member against the current base and returns its final (binned,
-/// standardised) columns; called by [`stepwise`] on every acceptance.
-pub type Accept<'a> = dyn FnMut(usize, &[Vec<f64>]) -> Vec<Vec<f64>> + 'a;
+/// The model [`stepwise`] builds: the accepted corrections, refitted jointly.
+pub trait JointModel {
+    /// Refines the accepted `member` against the current `base`, refits every correction
+    /// jointly and returns the active corrections' (binned, standardised) columns; called on
+    /// every acceptance.
+    fn accept(&mut self, member: usize, base: &[Vec<f64>]) -> Vec<Vec<f64>>;
+
+    /// Called when the selection would stop: brings every correction within its physics'
+    /// limits and returns the active corrections' columns when that changed the model (the
+    /// selection then goes on from it), `None` when the model was within them already.
+    fn settle(&mut self) -> Option<Vec<Vec<f64>>>;
+}
 
 /// The y-independent part of one view at one step.
 struct ViewStep<'v> {
@@ -392,7 +401,7 @@ impl<'v> ViewStep<'v> {
 pub fn stepwise(
     problem: &Problem<'_>,
     options: &Options,
-    accept: &mut Accept<'_>,
+    model: &mut dyn JointModel,
     watch: &Watch<'_>,
     span: std::ops::Range<f32>,
 ) -> Result<Vec<Step>, DiscrepancyError> {
@@ -549,7 +558,7 @@ pub fn stepwise(
             })?;
             chosen_kinds.push(problem.families[problem.members[first].family].kind);
             partner_due = Some(problem.families[problem.members[pair.partner].family].kind);
-            let refined = accept(first, &base);
+            let refined = model.accept(first, &base);
             base.truncate(1);
             base.extend(refined);
             continue;
@@ -617,7 +626,16 @@ pub fn stepwise(
             masked_by: None,
         });
         if !accepted {
-            break;
+            // Nothing more is significant in this model; if keeping its corrections within
+            // their limits changes it, what it explains changes too, and the search goes on.
+            match model.settle() {
+                Some(settled) => {
+                    base.truncate(1);
+                    base.extend(settled);
+                    continue;
+                }
+                None => break,
+            }
         }
         watch.report(at(0.7), || {
             format!("selection step {}: refitting the corrections", step + 1)
@@ -625,10 +643,12 @@ pub fn stepwise(
         chosen_kinds.push(best_kind);
         // The joint refit returns every active correction as it is now: the base is rebuilt
         // from them, not extended, so a refitted correction does not also stay in its old form.
-        let refined = accept(best, &base);
+        let refined = model.accept(best, &base);
         base.truncate(1);
         base.extend(refined);
     }
+    // However the selection ended, the model it leaves keeps within its limits.
+    model.settle();
     // A refit the observer stopped half-way is not a result.
     watch.report(span.end, || "selection done".into())?;
     Ok(steps)
