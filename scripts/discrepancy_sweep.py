@@ -18,6 +18,9 @@ each effect of the pair by its own size there (from the single sweep's runs):
 - one large, the other absent: the large one must be named and the absent one must not;
 - otherwise: listed, not scored.
 
+Either way it lists every finding whose sign (or, for the room, gain) contradicts the physics
+it names, read back from the reports' parameters: a cooling that warms, negative I²R heat.
+
 Usage (after `cargo build --release`; about 3 minutes on 2 cores, 12 with `--pairs`, which runs
 the single sweep's simulations first if they are missing):
 
@@ -99,6 +102,29 @@ def analyse(d, target):
     return json.load(open(report_path)), None
 
 
+def against_physics(report, target):
+    """The findings of a report whose sign (or the room's gain) contradicts the physics they
+    name: the limits the joint model keeps (docs/discrepancy.md, "Corrections keep within their
+    physics"), read back from the reported parameters."""
+    temperature = target.endswith("temp_C")
+    broken = []
+    for f in report["findings"]:
+        p, kind = f["parameters"], f["physics"]
+        if temperature and kind == "ambient_temperature" and not 0 < p["gain_per_K"] <= 1.05:
+            broken.append(f"room gain {p['gain_per_K']:.4f} K/K")
+        if temperature and kind == "copper_loss" and p["per_A2"] <= 0:
+            broken.append(f"I²R heating {p['per_A2']:.3g} °C/A²")
+        if (temperature and kind == "speed_dependent_cooling" and "simulated_at_rpm" not in p
+                and p["relative_change_at_1000rpm"] >= 0):
+            broken.append(f"cooling {p['relative_change_at_1000rpm']:+.3f} at 1000 rpm")
+        if temperature and kind == "coulomb_reversal" and min(
+                p.get("per_krpm", 1), p.get("per_A2", 1)) <= 0:
+            broken.append("negative friction heat")
+        if kind == "lubricant_viscosity" and p.get("temperature_coefficient_per_K", -1) > 0:
+            broken.append("friction rising as the lubricant warms")
+    return broken
+
+
 def single_runs(out, effect, seed):
     d = os.path.join(out, f"{effect}-{seed}")
     os.makedirs(d, exist_ok=True)
@@ -124,9 +150,10 @@ def one_case(out, effect, target, seed):
     d = single_runs(out, effect, seed)
     report, error = analyse(d, target)
     if report is None:
-        return effect, target, seed, None, error, 0.0
+        return effect, target, seed, None, error, 0.0, []
     named = [f["physics"] for f in report["findings"]]
-    return effect, target, seed, report["verdict"], named, effect_size(out, effect, target, seed)
+    return (effect, target, seed, report["verdict"], named,
+            effect_size(out, effect, target, seed), against_physics(report, target))
 
 
 def pair_case(out, pair, target, seed):
@@ -149,6 +176,7 @@ def pairs_main(out, seeds):
     size = {(e, t, s): effect_size(out, e, t, s) for e in EFFECTS for s in seeds for t in TARGETS}
     both = [0, 0]
     one = [0, 0]
+    broken = []
     print("| outcome | concealed | target | seed | sizes / σ | named | indistinguishable |")
     print("|---|---|---|---|---|---|---|")
     with concurrent.futures.ThreadPoolExecutor(2) as pool:
@@ -158,6 +186,8 @@ def pairs_main(out, seeds):
             if report is None:
                 print(f"| error | {label} | `{target}` | {seed} | | {error} | |")
                 continue
+            broken += [f"{label} on `{target}`, seed {seed}: {b}"
+                       for b in against_physics(report, target)]
             sizes = [size[(e, target, seed)] for e in pair]
             large = [e for e, z in zip(pair, sizes) if z >= LARGE]
             absent = [e for e, z in zip(pair, sizes) if z < ABSENT]
@@ -182,6 +212,7 @@ def pairs_main(out, seeds):
     print(f"\nboth large (each ≥ {LARGE} σ alone): {both[1]}/{both[0]} both named")
     print(f"one large, one absent (< {ABSENT} σ): {one[1]}/{one[0]} the large one named "
           f"and the absent one not")
+    print_against_physics(broken, len(cases))
 
 
 def main():
@@ -194,11 +225,13 @@ def main():
     cases = [(e, t, s) for e in EFFECTS for t in TARGETS for s in seeds]
     absent = [0, 0]
     large = [0, 0]
+    broken = []
     print("| outcome | concealed | target | seed | effect RMS / σ | verdict | named |")
     print("|---|---|---|---|---|---|---|")
     with concurrent.futures.ThreadPoolExecutor(2) as pool:
-        for effect, target, seed, verdict, named, size in pool.map(
+        for effect, target, seed, verdict, named, size, against in pool.map(
                 lambda c: one_case(out, *c), cases):
+            broken += [f"`{effect}` on `{target}`, seed {seed}: {b}" for b in against]
             if verdict is None:
                 print(f"| error | `{effect}` | `{target}` | {seed} | | | {named} |")
                 continue
@@ -219,6 +252,13 @@ def main():
                       f"| {', '.join(named) or '—'} |")
     print(f"\nabsent effects (RMS < {ABSENT} σ): {absent[1]}/{absent[0]} consistent")
     print(f"large effects (RMS ≥ {LARGE} σ): {large[1]}/{large[0]} named first")
+    print_against_physics(broken, len(cases))
+
+
+def print_against_physics(broken, reports):
+    print(f"findings against their physics' sign or range: {len(broken)} in {reports} reports")
+    for b in broken:
+        print(f"- {b}")
 
 
 if __name__ == "__main__":
