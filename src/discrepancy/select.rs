@@ -466,40 +466,62 @@ pub fn stepwise(
         );
         // Min-P over the views: each view's best gain gets a p-value against that view's
         // null maxima, and the smallest is compared with the smallest of every surrogate, so
-        // looking twice is paid for. Ties go to the data as they are (view 0).
-        let mut best: Option<(usize, usize, f64)> = None; // (member, view, p)
+        // looking twice is paid for. Ties go to the data as they are (view 0) unless its best
+        // fails the tail check below.
+        let mut candidates: Vec<(usize, usize, f64)> = Vec::new(); // (member, view, p)
         for (v, outcome) in observed.iter().enumerate() {
             let Some((_, gains)) = outcome else { continue };
             let Some((m, g)) = best_member(gains) else {
                 continue;
             };
-            let p = p_in_view(&null, v, g);
-            if best.is_none_or(|(_, _, b)| p < b) {
-                best = Some((m, v, p));
-            }
+            candidates.push((m, v, p_in_view(&null, v, g)));
         }
-        let Some((winner, best_view, _)) = best else {
+        let Some(&(mut winner, mut best_view, view_p)) = candidates
+            .iter()
+            .min_by(|a, b| a.2.total_cmp(&b.2).then(a.1.cmp(&b.1)))
+        else {
             break;
         };
-        let winner_gain = observed[best_view]
-            .as_ref()
-            .and_then(|(_, g)| g[winner])
-            .unwrap_or(0.0);
-        let p_value = min_p_value(&null, best_view, winner_gain);
         // Beating every surrogate happens by chance once in (surrogates + 1) steps. A finding
         // must also stand clear of the surrogates' maxima: the upper tail of a Gumbel
         // (extreme-value) law fitted to them must put it beyond `options.tail_alpha` — unless
         // it explains most of the held-out error, which noise that its own surrogates cannot
         // match does not do.
-        let tail_p = Gumbel::fit(
-            &null
+        let judge = |member: usize, view: usize, looks: f64| {
+            let gain = observed[view]
+                .as_ref()
+                .and_then(|(_, g)| g[member])
+                .unwrap_or(0.0);
+            let p_value = min_p_value(&null, view, gain);
+            let tail_p = Gumbel::fit(
+                &null
+                    .iter()
+                    .map(|row| row[view])
+                    .filter(|g| g.is_finite())
+                    .collect::<Vec<_>>(),
+            )
+            .map_or(p_value, |tail| (tail.survival(gain) * looks).min(1.0));
+            let clear = tail_p <= options.tail_alpha || gain >= options.dominant_gain;
+            (p_value, tail_p, clear)
+        };
+        let (mut p_value, mut tail_p, mut clear_of_null) = judge(winner, best_view, 1.0);
+        // When the data as they are and the high-passed data both beat every surrogate, the
+        // surrogates cannot rank them and only the tail can: a slow candidate that fits slow
+        // noise (and so fails the tail) must not hide a fast one that stands clear of it in
+        // the other view. Chosen by looking at more than one tail, it pays for each look.
+        if !clear_of_null {
+            let tied = candidates.iter().filter(|c| c.2 == view_p).count() as f64;
+            let other = candidates
                 .iter()
-                .map(|row| row[best_view])
-                .filter(|g| g.is_finite())
-                .collect::<Vec<_>>(),
-        )
-        .map_or(p_value, |tail| tail.survival(winner_gain));
-        let clear_of_null = tail_p <= options.tail_alpha || winner_gain >= options.dominant_gain;
+                .filter(|c| c.2 == view_p && c.1 != best_view)
+                .map(|&(m, v, _)| (m, v, judge(m, v, tied)))
+                .filter(|(_, _, (p, _, clear))| *clear && *p <= options.alpha)
+                .min_by(|a, b| (a.2).1.total_cmp(&(b.2).1));
+            if let Some((m, v, verdict)) = other {
+                (winner, best_view) = (m, v);
+                (p_value, tail_p, clear_of_null) = verdict;
+            }
+        }
         // Within the winning kind, the member (its τ, its delay) is the one that predicts the
         // data as they are best, since that is the model reported; the view only decided
         // whether the kind is real.
