@@ -914,6 +914,24 @@ impl Tally {
     }
 }
 
+/// The names a comma list in the environment variable `var` selects from `known` (`None`:
+/// the variable is unset, everything runs). A name not in `known` stops the run and says so,
+/// rather than leaving a table silently empty.
+fn env_selection<'k>(var: &str, known: &[&'k str]) -> Option<Vec<&'k str>> {
+    let list = std::env::var(var).ok()?;
+    Some(
+        list.split(',')
+            .map(|name| {
+                known
+                    .iter()
+                    .copied()
+                    .find(|k| *k == name.trim())
+                    .unwrap_or_else(|| panic!("{var}: unknown name {name:?}; known: {known:?}"))
+            })
+            .collect(),
+    )
+}
+
 /// The full proof: every vocabulary effect × seeds × white/correlated noise, negative controls,
 /// two effects at once. Prints the Markdown tables of docs/discrepancy.md. Run it in release:
 /// `cargo test --release --test tests discrepancy::full_grid -- --ignored --nocapture`
@@ -928,19 +946,12 @@ fn full_grid() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(5);
-    let parts = std::env::var("DISCREPANCY_PARTS").ok();
-    let part = |name: &str| {
-        parts
-            .as_deref()
-            .is_none_or(|p| p.split(',').any(|q| q == name))
-    };
+    let parts = env_selection("DISCREPANCY_PARTS", &["singles", "negatives", "pairs"]);
+    let part = |name: &str| parts.as_ref().is_none_or(|p| p.contains(&name));
     let slow_pairs_only = std::env::var("DISCREPANCY_PAIRS").is_ok_and(|p| p == "slow");
-    let effects = std::env::var("DISCREPANCY_EFFECTS").ok();
-    let effect_wanted = |effect: Effect| {
-        effects
-            .as_deref()
-            .is_none_or(|e| e.split(',').any(|id| id == effect.id()))
-    };
+    let effect_ids = VOCABULARY.map(|e| e.id());
+    let effects = env_selection("DISCREPANCY_EFFECTS", &effect_ids);
+    let effect_wanted = |effect: Effect| effects.as_ref().is_none_or(|e| e.contains(&effect.id()));
     // DISCREPANCY_NEGATIVE_SEEDS moves the negative controls' seeds (500 by default) to check
     // the false-discovery rate on controls the method was not developed on.
     let negative_seed_base: u64 = std::env::var("DISCREPANCY_NEGATIVE_SEEDS")
