@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 
 use super::series::{
-    legendre, lowpass, lowpass_from, mean, quantile, robust_sigma, shifted, smooth_sign,
+    legendre, lowpass_on_grid, mean, quantile, robust_sigma, shifted, smooth_sign,
 };
 use crate::signal::channel::{AMBIENT, COOLANT, Channel};
 use crate::signal::{AxisId, Quantity, axis_column};
@@ -239,6 +239,9 @@ pub struct Context {
     pub duration_s: f64,
     /// Median sample interval, s.
     pub step_s: f64,
+    /// The time step when the rows lie on a regular grid ([`super::series::regular_step`]),
+    /// found once for the thousands of lags built on these rows.
+    pub regular_step: Option<f64>,
     /// Where the target's instrument reads (1) and where it is silent (0): a drive that is
     /// switched off reports exactly zero current whatever its sensor's offset. `None` when it
     /// reads everywhere.
@@ -441,6 +444,7 @@ impl Context {
         } else {
             super::series::median(&steps)
         };
+        let regular_step = super::series::regular_step(&time);
         Context {
             target: target.to_string(),
             unit,
@@ -453,6 +457,7 @@ impl Context {
             axes,
             duration_s,
             step_s,
+            regular_step,
             reading: match class {
                 TargetClass::Effort { magnitude: true } if aligned.censoring.is_none() => {
                     super::censor::reading_rows(&aligned.real_target, &aligned.sim_target)
@@ -692,8 +697,11 @@ enum Start {
 /// What a driver has added to the target by each row, through a lag of time constant τ.
 fn accumulated(ctx: &Context, driver: &[f64], tau: f64, start: Start) -> Vec<f64> {
     match start {
-        Start::Rest => lowpass_from(&ctx.time, driver, tau, 0.0),
-        Start::Equilibrium => lowpass(&ctx.time, driver, tau),
+        Start::Rest => lowpass_on_grid(&ctx.time, ctx.regular_step, driver, tau, 0.0),
+        Start::Equilibrium => {
+            let first = driver.first().copied().unwrap_or(0.0);
+            lowpass_on_grid(&ctx.time, ctx.regular_step, driver, tau, first)
+        }
     }
 }
 

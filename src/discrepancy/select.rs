@@ -148,11 +148,10 @@ impl Gumbel {
 pub struct View {
     /// Moving-average window of the high-pass, bins (`None`: the data as they are).
     pub highpass: Option<usize>,
-    /// The store's columns in this view.
-    pub columns: Vec<Vec<f64>>,
     /// Whether each column still varies in this view.
     pub usable: Vec<bool>,
-    /// The same columns as one rows × columns matrix, for the surrogates' products.
+    /// The store's columns in this view, as one rows × columns matrix (column-major, so each
+    /// column is also a slice) for the surrogates' products.
     matrix: Mat<f64>,
 }
 
@@ -162,28 +161,37 @@ impl View {
         View {
             highpass: None,
             matrix: as_matrix(&store.columns),
-            columns: store.columns.clone(),
             usable: store.usable.clone(),
         }
     }
 
     /// High-passed with a moving average of `window` bins.
     pub fn highpassed(store: &Store, window: usize) -> View {
-        let mut columns = Vec::with_capacity(store.columns.len());
+        let rows = store.columns.first().map_or(0, Vec::len);
+        let mut matrix = Mat::<f64>::zeros(rows, store.columns.len());
         let mut usable = Vec::with_capacity(store.columns.len());
-        for (c, ok) in store.columns.iter().zip(&store.usable) {
-            let filtered = highpass(c, window);
+        for (c, (column, ok)) in store.columns.iter().zip(&store.usable).enumerate() {
+            let filtered = matrix.col_as_slice_mut(c);
+            highpass_into(column, window, filtered);
             // A column keeping under 1 % of its spread is slow: it has no say in this view.
-            let kept = std_dev(&filtered) > 0.01 * std_dev(c).max(1e-300);
+            let kept = std_dev(filtered) > 0.01 * std_dev(column).max(1e-300);
             usable.push(*ok && kept);
-            columns.push(filtered);
         }
         View {
             highpass: Some(window),
-            matrix: as_matrix(&columns),
-            columns,
+            matrix,
             usable,
         }
+    }
+
+    /// Column `c` of the store in this view.
+    pub fn column(&self, c: usize) -> &[f64] {
+        self.matrix.col_as_slice(c)
+    }
+
+    /// How many columns the store has.
+    pub fn width(&self) -> usize {
+        self.matrix.ncols()
     }
 
     /// A series in this view.
@@ -197,13 +205,26 @@ impl View {
 
 fn as_matrix(columns: &[Vec<f64>]) -> Mat<f64> {
     let rows = columns.first().map_or(0, Vec::len);
-    Mat::from_fn(rows, columns.len(), |i, c| columns[c][i])
+    let mut matrix = Mat::<f64>::zeros(rows, columns.len());
+    for (c, column) in columns.iter().enumerate() {
+        matrix.col_as_slice_mut(c).copy_from_slice(column);
+    }
+    matrix
 }
 
 /// `values` minus their centred moving average over `window` samples.
 pub fn highpass(values: &[f64], window: usize) -> Vec<f64> {
+    let mut out = vec![0.0; values.len()];
+    highpass_into(values, window, &mut out);
+    out
+}
+
+/// [`highpass`] written into `out` (of the same length as `values`).
+fn highpass_into(values: &[f64], window: usize, out: &mut [f64]) {
     let smooth = moving_average(values, window);
-    values.iter().zip(&smooth).map(|(v, s)| v - s).collect()
+    for ((o, v), s) in out.iter_mut().zip(values).zip(&smooth) {
+        *o = v - s;
+    }
 }
 
 /// Held-out SSE of every member on top of the base (`None`: unusable or of the wrong sign),
@@ -292,7 +313,7 @@ impl<'v> ViewStep<'v> {
                     return None;
                 }
                 let mut columns = base_columns.clone();
-                columns.extend(member.columns.clone().map(|c| view.columns[c].as_slice()));
+                columns.extend(member.columns.clone().map(|c| view.column(c)));
                 Some(ModelGram::new(&columns, blocks))
             })
             .collect();
@@ -309,11 +330,8 @@ impl<'v> ViewStep<'v> {
         let blocks = problem.blocks;
         let y = self.view.transform(y);
         let base_dots: Vec<Vec<f64>> = self.base.iter().map(|c| blocks.dots(c, &y)).collect();
-        let column_dots: Vec<Vec<f64>> = self
-            .view
-            .columns
-            .iter()
-            .map(|c| blocks.dots(c, &y))
+        let column_dots: Vec<Vec<f64>> = (0..self.view.width())
+            .map(|c| blocks.dots(self.view.column(c), &y))
             .collect();
         let yty = blocks.dots(&y, &y);
         self.gains_from(problem, &base_dots, &column_dots, &yty)
@@ -325,7 +343,7 @@ impl<'v> ViewStep<'v> {
         let blocks = problem.blocks;
         let transformed: Vec<Vec<f64>> = ys.iter().map(|y| self.view.transform(y)).collect();
         let targets = as_matrix(&transformed);
-        let columns = self.view.columns.len();
+        let columns = self.view.width();
         // products[b] is columns × targets for block b.
         let products: Vec<Mat<f64>> = blocks
             .ranges
@@ -688,17 +706,36 @@ fn surrogate_null(
     rng: &mut StdRng,
 ) -> Vec<Vec<f64>> {
     let spectrum = SurrogateSpectrum::new(noise);
-    let targets: Vec<Vec<f64>> = (0..count)
-        .map(|_| {
-            let draw = spectrum.draw(rng);
-            fitted.iter().zip(&draw).map(|(f, e)| f + e).collect()
+    let phases: Vec<_> = (0..count).map(|_| spectrum.draw_phases(rng)).collect();
+    let targets: Vec<Vec<f64>> = parallel_map(&phases, |phases| {
+        let draw = spectrum.surrogate(phases);
+        fitted.iter().zip(&draw).map(|(f, e)| f + e).collect()
+    });
+    // Each view's surrogates in a few shares, so that both views' work spreads over the
+    // threads however unequal the views are.
+    let count = targets.len();
+    let share = count.div_ceil(SURROGATE_SHARES).max(1);
+    let tasks: Vec<(usize, std::ops::Range<usize>)> = (0..view_steps.len())
+        .flat_map(|v| {
+            (0..count)
+                .step_by(share)
+                .map(move |start| (v, start..(start + share).min(count)))
         })
         .collect();
-    let per_view: Vec<Vec<f64>> = parallel_map(view_steps, |v| v.max_gains(problem, &targets));
-    (0..targets.len())
+    let parts: Vec<Vec<f64>> = parallel_map(&tasks, |(v, range)| {
+        view_steps[*v].max_gains(problem, &targets[range.clone()])
+    });
+    let mut per_view: Vec<Vec<f64>> = vec![Vec::with_capacity(count); view_steps.len()];
+    for ((v, _), part) in tasks.iter().zip(parts) {
+        per_view[*v].extend(part);
+    }
+    (0..count)
         .map(|j| per_view.iter().map(|v| v[j]).collect())
         .collect()
 }
+
+/// Shares each view's surrogates are scored in ([`surrogate_null`]).
+const SURROGATE_SHARES: usize = 4;
 
 /// The share of surrogates whose best gain in view `v` reaches `gain`.
 fn p_in_view(null: &[Vec<f64>], v: usize, gain: f64) -> f64 {
@@ -802,7 +839,7 @@ fn masked_pair(
             problem.members[member]
                 .columns
                 .clone()
-                .map(|c| view.columns[c].clone()),
+                .map(|c| view.column(c).to_vec()),
         );
         base
     };
@@ -862,8 +899,8 @@ fn contributions_correlation(
     let mut columns: Vec<&[f64]> = raw.base.iter().map(|c| c.as_slice()).collect();
     let a_columns = problem.members[a].columns.clone();
     let b_columns = problem.members[b].columns.clone();
-    columns.extend(a_columns.clone().map(|c| view.columns[c].as_slice()));
-    columns.extend(b_columns.clone().map(|c| view.columns[c].as_slice()));
+    columns.extend(a_columns.clone().map(|c| view.column(c)));
+    columns.extend(b_columns.clone().map(|c| view.column(c)));
     let (beta, _) = least_squares(&columns, problem.y)?;
     let n = problem.y.len();
     let a_start = raw.base.len();
@@ -911,12 +948,12 @@ fn indistinguishable_from(
     let block_sse = |member: usize| -> Option<Vec<f64>> {
         let m = &problem.members[member];
         let mut columns: Vec<&[f64]> = view_step.base.iter().map(|c| c.as_slice()).collect();
-        columns.extend(m.columns.clone().map(|c| view.columns[c].as_slice()));
+        columns.extend(m.columns.clone().map(|c| view.column(c)));
         let gram = ModelGram::new(&columns, blocks);
         let own_dots: Vec<Vec<f64>> = m
             .columns
             .clone()
-            .map(|c| blocks.dots(&view.columns[c], &y))
+            .map(|c| blocks.dots(view.column(c), &y))
             .collect();
         let mut zty: Vec<&[f64]> = base_dots.iter().map(|d| d.as_slice()).collect();
         zty.extend(own_dots.iter().map(|d| d.as_slice()));
@@ -943,4 +980,37 @@ fn indistinguishable_from(
             (t < options.distinguish_t).then_some(member)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A view holds the store's columns (as they are, or high-passed) and hands each out as a
+    /// slice; a column too slow to keep 1 % of its spread through the high-pass has no say there.
+    #[test]
+    fn views_hand_out_the_store_columns_as_they_are_or_high_passed() {
+        let rows = 400;
+        let mut store = Store::default();
+        let fast: Vec<f64> = (0..rows).map(|i| ((i * 7) % 13) as f64).collect();
+        let slow: Vec<f64> = (0..rows).map(|i| i as f64).collect();
+        let range = store.push(vec![fast, slow]);
+        assert_eq!(range, 0..2);
+        let raw = View::raw(&store);
+        assert_eq!(raw.width(), 2);
+        for c in 0..2 {
+            assert_eq!(raw.column(c), store.columns[c].as_slice());
+        }
+        assert_eq!(raw.usable, vec![true, true]);
+        let window = 9;
+        let high = View::highpassed(&store, window);
+        for c in 0..2 {
+            assert_eq!(
+                high.column(c),
+                highpass(&store.columns[c], window).as_slice()
+            );
+        }
+        assert_eq!(high.usable, vec![true, false]);
+        assert_eq!(high.transform(&store.columns[0]), high.column(0));
+    }
 }

@@ -14,8 +14,25 @@ pub fn lowpass(time: &[f64], values: &[f64], tau_s: f64) -> Vec<f64> {
 /// First-order lag as [`lowpass`], its state starting at `initial`.
 pub fn lowpass_from(time: &[f64], values: &[f64], tau_s: f64, initial: f64) -> Vec<f64> {
     let n = time.len().min(values.len());
-    let (time, values) = (&time[..n], &values[..n]);
-    match regular_step(time) {
+    lowpass_on_grid(&time[..n], regular_step(&time[..n]), values, tau_s, initial)
+}
+
+/// [`lowpass_from`] on a time base whose [`regular_step`] the caller already knows: checking
+/// the grid costs a quarter of a lag, and the discrepancy analysis lags thousands of series on
+/// one time base.
+pub fn lowpass_on_grid(
+    time: &[f64],
+    step: Option<f64>,
+    values: &[f64],
+    tau_s: f64,
+    initial: f64,
+) -> Vec<f64> {
+    if values.len() != time.len() {
+        // Not the grid the step was found on: check the part both cover.
+        return lowpass_from(time, values, tau_s, initial);
+    }
+    let n = time.len();
+    match step {
         Some(step) if n >= LAG_SEGMENTS * MIN_SEGMENT_ROWS => {
             lowpass_regular(values, -(-step / tau_s).exp_m1(), initial)
         }
@@ -55,7 +72,7 @@ const MIN_SEGMENT_ROWS: usize = 256;
 /// the rounding of its binary one, a unit or two in its last place, so consecutive 0.1 s steps
 /// of a 10 Hz record differ in their last bits (and taken bit for bit, no 10 Hz record would
 /// be regular). The step returned is the mean one, (last − first) / (rows − 1).
-fn regular_step(time: &[f64]) -> Option<f64> {
+pub fn regular_step(time: &[f64]) -> Option<f64> {
     let (first, last) = match time {
         [first, .., last] => (*first, *last),
         _ => return None,
@@ -212,8 +229,9 @@ pub fn legendre(k: usize, u: f64) -> f64 {
 }
 
 /// `f` over `items` on up to as many threads as the machine has cores (at most four), the
-/// results in the order of the items. The work items here are independent and similar in
-/// size, so contiguous chunks balance well.
+/// results in the order of the items. Each thread takes the next item not yet taken: the items
+/// differ in cost (a family of two-lag members next to one of plain gains), and contiguous
+/// chunks would leave one thread with the dear ones while the others wait.
 pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
     let threads = std::thread::available_parallelism()
         .map_or(1, std::num::NonZeroUsize::get)
@@ -222,11 +240,21 @@ pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -
     if threads <= 1 {
         return items.iter().map(&f).collect();
     }
-    let chunk = items.len().div_ceil(threads);
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = items
-            .chunks(chunk)
-            .map(|part| scope.spawn(|| part.iter().map(&f).collect::<Vec<R>>()))
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut indexed: Vec<(usize, R)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut done = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(item) = items.get(i) else {
+                            return done;
+                        };
+                        done.push((i, f(item)));
+                    }
+                })
+            })
             .collect();
         handles
             .into_iter()
@@ -235,7 +263,9 @@ pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -
                 Err(panic) => std::panic::resume_unwind(panic),
             })
             .collect()
-    })
+    });
+    indexed.sort_unstable_by_key(|(i, _)| *i);
+    indexed.into_iter().map(|(_, r)| r).collect()
 }
 
 /// Arithmetic mean (0 for an empty slice).
@@ -481,12 +511,31 @@ impl SurrogateSpectrum {
     /// A surrogate with the same amplitude spectrum (hence the same circular autocorrelation)
     /// and independent uniformly random phases.
     pub fn draw(&self, rng: &mut impl Rng) -> Vec<f64> {
+        self.surrogate(&self.draw_phases(rng))
+    }
+
+    /// The random part of a surrogate: drawn in sequence from one generator (so that a seed
+    /// gives the same surrogates), while the transforms ([`Self::surrogate`]) can run side by
+    /// side.
+    pub fn draw_phases(&self, rng: &mut impl Rng) -> SurrogatePhases {
+        let n = self.re.len();
+        let phases = (1..n.div_ceil(2))
+            .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
+            .collect();
+        let nyquist_negative = n.is_multiple_of(2) && n > 0 && !rng.random_bool(0.5);
+        SurrogatePhases {
+            phases,
+            nyquist_negative,
+        }
+    }
+
+    /// The surrogate with the spectrum's amplitudes and `phases`.
+    pub fn surrogate(&self, phases: &SurrogatePhases) -> Vec<f64> {
         let n = self.re.len();
         let mut re = vec![0.0; n];
         let mut im = vec![0.0; n];
-        for k in 1..n.div_ceil(2) {
+        for (k, phase) in (1..n.div_ceil(2)).zip(&phases.phases) {
             let amplitude = self.re[k].hypot(self.im[k]);
-            let phase: f64 = rng.random_range(0.0..std::f64::consts::TAU);
             let (s, c) = phase.sin_cos();
             re[k] = amplitude * c;
             im[k] = amplitude * s;
@@ -495,16 +544,25 @@ impl SurrogateSpectrum {
         }
         if n.is_multiple_of(2) && n > 0 {
             let amplitude = self.re[n / 2].hypot(self.im[n / 2]);
-            re[n / 2] = if rng.random_bool(0.5) {
-                amplitude
-            } else {
+            re[n / 2] = if phases.nyquist_negative {
                 -amplitude
+            } else {
+                amplitude
             };
         }
         dft(&mut re, &mut im, true);
         let scale = 1.0 / n.max(1) as f64;
         re.iter().map(|v| v * scale + self.mean).collect()
     }
+}
+
+/// The random phases of one surrogate ([`SurrogateSpectrum::draw_phases`]).
+#[derive(Debug, Clone)]
+pub struct SurrogatePhases {
+    /// Phase of every frequency below the Nyquist one, radians.
+    phases: Vec<f64>,
+    /// Whether the Nyquist term (even lengths) changes sign.
+    nyquist_negative: bool,
 }
 
 #[cfg(test)]
@@ -611,6 +669,65 @@ mod tests {
         }
         let lag = lowpass_from(&uneven, &step_input, tau, 0.0);
         assert_eq!(lag, lowpass_per_row(&uneven, &step_input, tau, 0.0));
+    }
+
+    /// A lag on a grid whose step the caller passes is the lag that finds the step itself; a
+    /// caller that passes a step with a series of another length gets the checked lag.
+    #[test]
+    fn a_lag_on_a_known_grid_is_the_lag_that_checks_the_grid() {
+        let n = LAG_SEGMENTS * MIN_SEGMENT_ROWS * 2 + 3;
+        let time: Vec<f64> = (0..n).map(|i| 2.0 * i as f64).collect();
+        let values: Vec<f64> = (0..n).map(|i| (i as f64 * 0.01).cos()).collect();
+        let step = regular_step(&time);
+        assert_eq!(step, Some(2.0));
+        for (tau, initial) in [(30.0, 0.0), (900.0, 1.5)] {
+            assert_eq!(
+                lowpass_on_grid(&time, step, &values, tau, initial),
+                lowpass_from(&time, &values, tau, initial)
+            );
+        }
+        let uneven: Vec<f64> = time.iter().map(|t| t * t / 1000.0).collect();
+        assert_eq!(
+            lowpass_on_grid(&uneven, None, &values, 60.0, 0.0),
+            lowpass_per_row(&uneven, &values, 60.0, 0.0)
+        );
+        let short = &values[..n - 1];
+        assert_eq!(
+            lowpass_on_grid(&time, step, short, 60.0, 0.0),
+            lowpass_from(&time, short, 60.0, 0.0)
+        );
+    }
+
+    /// The items may take very different times; the results still come in the items' order,
+    /// one per item, on any number of threads.
+    #[test]
+    fn parallel_map_keeps_the_order_of_unequal_items() {
+        let items: Vec<u64> = (0..37)
+            .map(|i| if i % 5 == 0 { 20_000 } else { 10 })
+            .collect();
+        let work = |&n: &u64| -> u64 { (0..n).fold(n, |a, k| a.wrapping_mul(31).wrapping_add(k)) };
+        let sequential: Vec<u64> = items.iter().map(work).collect();
+        assert_eq!(parallel_map(&items, work), sequential);
+        assert_eq!(parallel_map(&items[..1], work), sequential[..1]);
+        assert!(parallel_map(&[] as &[u64], work).is_empty());
+    }
+
+    /// Phases drawn in sequence and transformed later give the surrogates a draw gives: the
+    /// surrogates of one seed stay the same however their transforms are spread over threads.
+    #[test]
+    fn surrogates_from_drawn_phases_are_the_drawn_surrogates() {
+        let values: Vec<f64> = (0..512).map(|i| ((i * 37) % 11) as f64 - 5.0).collect();
+        for n in [512, 511] {
+            let spectrum = SurrogateSpectrum::new(&values[..n]);
+            let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+            let drawn: Vec<Vec<f64>> = (0..4).map(|_| spectrum.draw(&mut rng)).collect();
+            let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+            let phases: Vec<SurrogatePhases> =
+                (0..4).map(|_| spectrum.draw_phases(&mut rng)).collect();
+            let transformed = parallel_map(&phases, |p| spectrum.surrogate(p));
+            assert_eq!(drawn, transformed, "length {n}");
+            assert_ne!(drawn[0], drawn[1]);
+        }
     }
 
     /// Time stamps of a 10 Hz record read from their decimal form differ from step to step in
