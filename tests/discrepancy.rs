@@ -1096,6 +1096,7 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
     let (dir, sim, real) = pair_paths();
     let json = dir.path().join("report.json");
     let plot = dir.path().join("plot.json");
+    let png = dir.path().join("plot.png");
     for (path, extra) in [
         (&sim, vec!["--without", "copper_loss", "--noise", "0"]),
         (&real, vec![]),
@@ -1128,6 +1129,8 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
         arg(&json),
         "--plot-data",
         arg(&plot),
+        "--plot",
+        arg(&png),
         "--surrogates",
         "39",
         "--alpha",
@@ -1186,6 +1189,40 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
     ] {
         assert_eq!(plot[key].as_array().unwrap().len(), points, "{key}");
     }
+    // The figure: the Model lab's view drawn into a PNG as tall as the report, with the
+    // residual before (red) and after (green) drawn, on the light theme's background.
+    assert!(
+        stderr(&run).contains("plot.png (1400 × "),
+        "{}",
+        stderr(&run)
+    );
+    let image = image::open(&png).expect("a PNG that decodes").to_rgba8();
+    let (width, height) = image.dimensions();
+    assert_eq!(width, 1400);
+    assert!((600..2000).contains(&height), "{height} px tall");
+    let near = |p: &image::Rgba<u8>, c: [u8; 3]| {
+        (0..3).all(|k| (i32::from(p[k]) - i32::from(c[k])).abs() <= 12)
+    };
+    let red = image
+        .pixels()
+        .filter(|p| near(p, [0xd0, 0x30, 0x30]))
+        .count();
+    let green = image
+        .pixels()
+        .filter(|p| near(p, [0x2e, 0xa0, 0x43]))
+        .count();
+    assert!(
+        red > 300 && green > 300,
+        "{red} red and {green} green pixels"
+    );
+    let light = image
+        .pixels()
+        .filter(|p| p[0] > 200 && p[1] > 200 && p[2] > 200)
+        .count();
+    assert!(
+        light > (width * height / 2) as usize,
+        "{light} light pixels"
+    );
 }
 
 /// A temporary directory (removed when dropped) and the simulation's and the real

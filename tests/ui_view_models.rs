@@ -1026,7 +1026,7 @@ fn discrepancy_outcome(
     pair: &crate::discrepancy::Pair,
     target: &str,
 ) -> servosight::ui::sim_vs_real::DiscrepancyOutcome {
-    use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest, plot_history};
+    use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest};
     let report = servosight::discrepancy::analyse(
         &pair.sim,
         &pair.real,
@@ -1034,15 +1034,14 @@ fn discrepancy_outcome(
         &servosight::discrepancy::Options::default(),
     )
     .expect("the analysis runs");
-    DiscrepancyOutcome {
-        request: DiscrepancyRequest {
+    DiscrepancyOutcome::new(
+        DiscrepancyRequest {
             sim: "sim.csv".into(),
             real: "real.csv".into(),
             target: target.into(),
         },
-        plot: plot_history(&report),
         report,
-    }
+    )
 }
 
 /// The sim-vs-real part of the Model lab: a consistent pair, a pair whose simulation omits

@@ -6,6 +6,15 @@ use std::path::PathBuf;
 use anyhow::Context;
 use servosight::discrepancy::{Options, analyse};
 use servosight::signal::read_recording;
+use servosight::ui::export_png::render_discrepancy;
+use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest};
+use servosight::ui::vm::discrepancy::result_view;
+
+/// Width of `--plot`'s image, pixels.
+const PLOT_WIDTH_PX: u32 = 1400;
+
+/// Most points per line in `--plot`'s image (about one per pixel of the plots).
+const PLOT_POINTS: usize = 1400;
 
 /// Arguments of `servosight discrepancy`.
 #[derive(Debug, clap::Args)]
@@ -31,6 +40,11 @@ pub struct Args {
     /// as JSON to this file.
     #[arg(long)]
     pub plot_data: Option<PathBuf>,
+    /// Draw the analysis as the HMI's Model lab shows it (verdict, fit before and after,
+    /// findings, the residual with its mismatch regions, real vs sim vs corrected) into this
+    /// PNG file, 1400 pixels wide and as tall as the report.
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
     /// Phase-randomised surrogates per selection step (the p-value resolution is 1/(N + 1)).
     #[arg(long, default_value_t = Options::default().surrogates)]
     pub surrogates: usize,
@@ -98,6 +112,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.plot_data {
         crate::servosight_cli::write_json(path, &report.plot)?;
+    }
+    // Last: a figure that cannot be written leaves the report and the data already written.
+    if let Some(path) = &args.plot {
+        let request = DiscrepancyRequest {
+            sim: args.sim.clone(),
+            real: args.real.clone(),
+            target: args.target.clone(),
+        };
+        let view = result_view(&DiscrepancyOutcome::new(request, report), PLOT_POINTS);
+        let canvas = render_discrepancy(&view, false, PLOT_WIDTH_PX)
+            .with_context(|| format!("cannot draw {}", path.display()))?;
+        canvas.save_png(path)?;
+        eprintln!(
+            "wrote {} ({} × {} px)",
+            path.display(),
+            canvas.width(),
+            canvas.height()
+        );
     }
     Ok(())
 }

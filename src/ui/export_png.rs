@@ -1,9 +1,10 @@
-//! PNG export of the Trends panel's plots, drawn by the very widgets the screen shows.
+//! PNG export of the Trends panel's plots and of a sim-vs-real analysis, drawn by the very
+//! widgets the screen shows.
 //!
-//! A private egui context runs the Trends plotting code ([`super::panels::trends::plots_ui`])
-//! on the view model, epaint tessellates the result into triangles, and a small software
-//! rasteriser here fills them into an RGBA image (egui's feathered edges make that
-//! anti-aliased). No window, GPU or second plotting library is involved, so the export works
+//! A private egui context runs the panel's drawing code ([`super::panels::trends::plots_ui`],
+//! [`super::panels::model_lab::result_ui`]) on the view model, epaint tessellates the result
+//! into triangles, and a small software rasteriser here fills them into an RGBA image (egui's
+//! feathered edges make that anti-aliased). No window, GPU or second plotting library is involved, so the export works
 //! the same on a headless test machine and runs on a job thread, never on the UI thread.
 
 use std::collections::HashMap;
@@ -13,6 +14,7 @@ use eframe::egui;
 use egui::epaint::{ClippedPrimitive, ColorImage, ImageDelta, Primitive, TextureId};
 
 use super::jobs::{JobContext, JobStop};
+use super::vm::discrepancy::DiscrepancyResultView;
 use super::vm::trends::TrendsView;
 
 /// Why a PNG could not be made.
@@ -58,32 +60,89 @@ pub fn render_trends(view: &TrendsView, dark: bool, size: [u32; 2]) -> Result<Ca
     if view.plots.is_empty() && view.straightness.is_empty() {
         return Err(PngError::Empty);
     }
+    render_ui(dark, size, |ui| {
+        ui.heading(format!(
+            "servosight trends — machine time {:.1} s to {:.1} s",
+            view.t0, view.t1
+        ));
+        ui.label(&view.resolution);
+        super::panels::trends::plots_ui(ui, view, true, None);
+    })
+}
+
+/// Draws a sim-vs-real analysis as the Model lab shows it (verdict, fit before and after,
+/// findings, the residual with its mismatch regions, real vs sim vs corrected) into an image
+/// `width` pixels wide and as tall as its content (at most [`MAX_HEIGHT`]): `servosight
+/// discrepancy --plot`.
+pub fn render_discrepancy(
+    view: &DiscrepancyResultView,
+    dark: bool,
+    width: u32,
+) -> Result<Canvas, PngError> {
+    let draw = |ui: &mut egui::Ui| {
+        ui.heading(format!("servosight discrepancy — {}", view.target));
+        super::panels::model_lab::result_ui(ui, view);
+    };
+    // Laid out once on a page taller than any report, to find where the content ends.
+    let bottom = layout_bottom(dark, [width, MAX_HEIGHT], draw);
+    let height = (bottom.ceil() as u32 + 12).clamp(64, MAX_HEIGHT);
+    render_ui(dark, [width, height], draw)
+}
+
+/// The tallest image [`render_discrepancy`] makes, pixels.
+pub const MAX_HEIGHT: u32 = 4000;
+
+fn screen_input(size: [u32; 2]) -> egui::RawInput {
+    let screen =
+        egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(size[0] as f32, size[1] as f32));
+    egui::RawInput {
+        screen_rect: Some(screen),
+        ..Default::default()
+    }
+}
+
+fn themed_context(dark: bool) -> egui::Context {
     let ctx = egui::Context::default();
     ctx.set_theme(if dark {
         egui::Theme::Dark
     } else {
         egui::Theme::Light
     });
-    let screen =
-        egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(size[0] as f32, size[1] as f32));
-    let input = || egui::RawInput {
-        screen_rect: Some(screen),
-        ..Default::default()
-    };
+    ctx
+}
+
+/// Where the content `draw` adds to a central panel of `size` ends, points from the top.
+fn layout_bottom(dark: bool, size: [u32; 2], mut draw: impl FnMut(&mut egui::Ui)) -> f32 {
+    let ctx = themed_context(dark);
+    let mut bottom = 0.0;
+    // Twice, as in `render_ui`: the second pass has the first one's measured text.
+    for _ in 0..2 {
+        let _ = ctx.run_ui(screen_input(size), |ui| {
+            egui::CentralPanel::default().show(ui, |ui| {
+                draw(ui);
+                // Where the next widget would go: below everything drawn (the panel's own
+                // rectangle fills the page whatever its content).
+                bottom = ui.cursor().min.y;
+            });
+        });
+    }
+    bottom
+}
+
+/// Runs `draw` in a central panel of a private egui context and rasterises what it paints.
+fn render_ui(
+    dark: bool,
+    size: [u32; 2],
+    mut draw: impl FnMut(&mut egui::Ui),
+) -> Result<Canvas, PngError> {
+    let ctx = themed_context(dark);
     let mut textures: HashMap<TextureId, ColorImage> = HashMap::new();
     let mut output = None;
     // The first pass lays out (plots size their axes from the text they measured); the
     // second draws the settled layout.
     for _ in 0..2 {
-        let full = ctx.run_ui(input(), |ui| {
-            egui::CentralPanel::default().show(ui, |ui| {
-                ui.heading(format!(
-                    "servosight trends — machine time {:.1} s to {:.1} s",
-                    view.t0, view.t1
-                ));
-                ui.label(&view.resolution);
-                super::panels::trends::plots_ui(ui, view, true, None);
-            });
+        let full = ctx.run_ui(screen_input(size), |ui| {
+            egui::CentralPanel::default().show(ui, |ui| draw(ui));
         });
         let mut full = full;
         for (id, deltas) in &full.textures_delta.set {

@@ -49,6 +49,18 @@ pub struct DiscrepancyOutcome {
     pub plot: History,
 }
 
+impl DiscrepancyOutcome {
+    /// The outcome of `request`, its plot series put into their pyramid.
+    pub fn new(request: DiscrepancyRequest, report: DiscrepancyReport) -> DiscrepancyOutcome {
+        let plot = plot_history(&report);
+        DiscrepancyOutcome {
+            request,
+            report,
+            plot,
+        }
+    }
+}
+
 /// The plot series of `report` in a [`History`] that holds every point at full rate (the
 /// library already bins them to a few thousand) with one coarser level above.
 pub fn plot_history(report: &DiscrepancyReport) -> History {
@@ -120,12 +132,7 @@ pub fn run_discrepancy(
         })?;
     context.check()?;
     context.progress("preparing the plots", Some(0.95));
-    let plot = plot_history(&report);
-    Ok(DiscrepancyOutcome {
-        request,
-        report,
-        plot,
-    })
+    Ok(DiscrepancyOutcome::new(request, report))
 }
 
 /// The columns two recordings share (besides `time_s`), in the real recording's order.

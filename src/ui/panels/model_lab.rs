@@ -198,7 +198,9 @@ pub fn discrepancy_ui(
     egui::ScrollArea::vertical().show(ui, |ui| result_ui(ui, result));
 }
 
-fn result_ui(ui: &mut egui::Ui, r: &DiscrepancyResultView) {
+/// A finished analysis: verdict, fit before and after, findings, notes, and the residual and
+/// overlay plots (also what `servosight discrepancy --plot` draws into its PNG).
+pub fn result_ui(ui: &mut egui::Ui, r: &DiscrepancyResultView) {
     let severity = if r.missing_physics {
         crate::ui::state::Severity::Warning
     } else {

@@ -150,7 +150,8 @@ pub fn build(state: &HmiState, max_points: usize) -> DiscrepancyView {
     }
 }
 
-fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> DiscrepancyResultView {
+/// The view of a finished analysis, its plots decimated to at most `max_points` points.
+pub fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> DiscrepancyResultView {
     let r = &outcome.report;
     let u = unit(&r.target);
     let with_unit = |text: String| {
