@@ -103,6 +103,7 @@ fn screen_input(size: [u32; 2]) -> egui::RawInput {
 
 fn themed_context(dark: bool) -> egui::Context {
     let ctx = egui::Context::default();
+    super::install_fonts(&ctx);
     ctx.set_theme(if dark {
         egui::Theme::Dark
     } else {

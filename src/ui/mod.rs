@@ -14,7 +14,8 @@
 //!   header read that offers the target columns both files share.
 //! - [`analysis`]: the warm-up checklist's friction fingerprint and backlash analyses and the
 //!   depth-of-cut recommendation, run as jobs on full-rate samples copied from the history.
-//! - [`export_png`]: the Trends plots drawn into a PNG without a window or GPU.
+//! - [`export_png`]: the Trends plots and a sim-vs-real analysis drawn into a PNG without a
+//!   window or GPU.
 //!
 //! With a calibrated machine profile the session runs the [`crate::estimators`] pipeline on
 //! every frame; its outputs (`est.*` columns: motor flange, bearing and nut temperatures,
@@ -48,6 +49,25 @@ pub enum UiError {
     Window(String),
 }
 
+/// egui's own fonts, with its monospace font behind the proportional one for the characters
+/// the proportional font lacks: the physics library writes "∝" in its explanations, which
+/// egui's default proportional font has no glyph for (drawn as an empty box before).
+pub fn install_fonts(ctx: &egui::Context) {
+    let mut fonts = egui::FontDefinitions::default();
+    let monospace = fonts
+        .families
+        .get(&egui::FontFamily::Monospace)
+        .and_then(|names| names.first().cloned());
+    if let (Some(name), Some(proportional)) = (
+        monospace,
+        fonts.families.get_mut(&egui::FontFamily::Proportional),
+    ) && !proportional.contains(&name)
+    {
+        proportional.push(name);
+    }
+    ctx.set_fonts(fonts);
+}
+
 /// Opens the HMI window on a new session and runs until the window is closed.
 pub fn run(config: SessionConfig, options: HmiOptions) -> Result<(), UiError> {
     let session = Session::start(config)?;
@@ -79,7 +99,30 @@ pub fn run(config: SessionConfig, options: HmiOptions) -> Result<(), UiError> {
     eframe::run_native(
         "servosight",
         native,
-        Box::new(move |_creation| Ok(Box::new(HmiApp::new(session, options)))),
+        Box::new(move |creation| {
+            install_fonts(&creation.egui_ctx);
+            Ok(Box::new(HmiApp::new(session, options)))
+        }),
     )
     .map_err(|e| UiError::Window(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every character the physics library writes into its explanations has a glyph in the
+    /// font the panels write them in.
+    #[test]
+    fn the_explanations_characters_can_be_drawn() {
+        let ctx = egui::Context::default();
+        install_fonts(&ctx);
+        let _ = ctx.run_ui(egui::RawInput::default(), |_| {});
+        let font = egui::FontId::proportional(14.0);
+        let missing: String = "τ²∝–≈×…—Δ·µ±°≥≤−"
+            .chars()
+            .filter(|c| !ctx.fonts_mut(|f| f.has_glyph(&font, *c)))
+            .collect();
+        assert_eq!(missing, "");
+    }
 }
