@@ -873,6 +873,31 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
     assert!(shows(h, "missing physics"));
     assert!(shows(h, "after: sim + corrections (held out)"));
     assert!(shows(h, "I²R"), "the finding's explanation is shown");
+
+    // The result drawn into a PNG on a job, as `servosight discrepancy --plot` draws it.
+    let png = f._dir.path().join("sim-vs-real.png");
+    assert!(shows(h, "Figure (PNG)"));
+    h.state_mut().settings.forms.disc_png_path = png.display().to_string();
+    click(h, "Export PNG");
+    step_until(h, "the PNG export", |app| {
+        app.state
+            .model_lab
+            .discrepancy
+            .png_note
+            .as_deref()
+            .is_some_and(|note| !note.contains("drawing") && !note.starts_with("PNG export: "))
+    });
+    settle(h);
+    let note = h.state().state.model_lab.discrepancy.png_note.clone();
+    assert!(
+        note.as_deref()
+            .is_some_and(|n| n.contains("PNG written to")),
+        "{note:?}"
+    );
+    assert!(shows(h, "PNG written to"));
+    let image = image::open(&png).expect("a PNG that decodes").to_rgba8();
+    assert_eq!(image.width(), 1400);
+    assert!(image.height() > 600, "{} px tall", image.height());
 }
 
 #[test]

@@ -8,7 +8,7 @@ use eframe::egui;
 use serde::{Deserialize, Serialize};
 
 use super::analysis::{DepthInput, DepthOutcome, WarmupAnalysis, WarmupInput};
-use super::export_png::{PngOutcome, PngRequest};
+use super::export_png::{PngFigure, PngOutcome, PngRequest};
 use super::jobs::{FitOutcome, FitRequest, Job, JobMessage, run_fit};
 use super::panels::{self, Forms, Tab, UiCommand};
 use super::session::{Session, SessionCommand};
@@ -108,6 +108,10 @@ const EVENT_ROWS: usize = 2000;
 const TREND_POINTS: usize = 1000;
 /// Points per line on the Model lab's sim-vs-real plots.
 const DISCREPANCY_POINTS: usize = 1500;
+/// Width of the sim-vs-real PNG, pixels (as `servosight discrepancy --plot` draws it).
+const DISCREPANCY_PNG_WIDTH: u32 = 1400;
+/// Points per line in the sim-vs-real PNG (about one per pixel of its plots).
+const DISCREPANCY_PNG_POINTS: usize = 1400;
 /// How often settings are saved while running.
 const SAVE_EVERY: Duration = Duration::from_secs(10);
 
@@ -126,6 +130,8 @@ pub struct HmiApp {
     depth_job: Option<Job<DepthOutcome>>,
     png_job: Option<Job<PngOutcome>>,
     discrepancy_job: Option<Job<DiscrepancyOutcome>>,
+    /// Drawing the sim-vs-real analysis into a PNG.
+    discrepancy_png_job: Option<Job<PngOutcome>>,
     columns_job: Option<Job<SharedColumns>>,
     /// The (simulation, real) paths whose shared columns were last asked for.
     columns_asked: Option<(String, String)>,
@@ -181,6 +187,12 @@ impl HmiApp {
                 .display()
                 .to_string();
         }
+        if settings.forms.disc_png_path.is_empty() {
+            settings.forms.disc_png_path = std::env::temp_dir()
+                .join("servosight-sim-vs-real.png")
+                .display()
+                .to_string();
+        }
         if settings.forms.workpiece_diameter_mm.is_empty() {
             settings.forms.workpiece_diameter_mm = "80".into();
         }
@@ -196,6 +208,7 @@ impl HmiApp {
             depth_job: None,
             png_job: None,
             discrepancy_job: None,
+            discrepancy_png_job: None,
             columns_job: None,
             columns_asked: None,
             depth_refreshed: None,
@@ -247,6 +260,7 @@ impl HmiApp {
             || self.depth_job.is_some()
             || self.png_job.is_some()
             || self.discrepancy_job.is_some()
+            || self.discrepancy_png_job.is_some()
             || self.columns_job.is_some();
         ctx.request_repaint_after(if live {
             Duration::from_millis(33)
@@ -382,15 +396,7 @@ impl HmiApp {
         }
         let mut png_progress = None;
         if let Some(end) = poll_job(&mut self.png_job, &mut png_progress) {
-            self.export_note = Some(match end {
-                Ok(done) => format!(
-                    "{}×{} px PNG written to {}",
-                    done.size[0],
-                    done.size[1],
-                    done.path.display()
-                ),
-                Err(reason) => format!("PNG export failed: {reason}"),
-            });
+            self.export_note = Some(png_note(end));
         } else if let Some(progress) = png_progress {
             self.export_note = Some(format!("PNG export: {}", progress.stage));
         }
@@ -423,6 +429,13 @@ impl HmiApp {
                     self.job_event(Severity::Warning, text);
                 }
             }
+        }
+        let mut png_progress = None;
+        if let Some(end) = poll_job(&mut self.discrepancy_png_job, &mut png_progress) {
+            self.state.model_lab.discrepancy.png_note = Some(png_note(end));
+        } else if let Some(progress) = png_progress {
+            self.state.model_lab.discrepancy.png_note =
+                Some(format!("PNG export: {}", progress.stage));
         }
         let mut ignored = None;
         if let Some(end) = poll_job(&mut self.columns_job, &mut ignored) {
@@ -666,9 +679,11 @@ impl HmiApp {
         let height =
             90 + 360 * view.plots.len() as u32 + if view.straightness.is_empty() { 0 } else { 300 };
         let request = PngRequest {
-            view,
+            figure: PngFigure::Trends {
+                view,
+                size: [1600, height],
+            },
             dark: self.settings.dark,
-            size: [1600, height],
             path: PathBuf::from(self.settings.forms.png_path.trim()),
         };
         match Job::spawn("PNG export", move |c| {
@@ -679,6 +694,38 @@ impl HmiApp {
                 self.png_job = Some(job);
             }
             Err(error) => self.export_note = Some(format!("cannot start the export: {error}")),
+        }
+    }
+
+    /// Draws the last sim-vs-real analysis into the Model lab's PNG file, on a job.
+    fn export_discrepancy_png(&mut self) {
+        if self.discrepancy_png_job.is_some() {
+            return;
+        }
+        let lab = &mut self.state.model_lab.discrepancy;
+        let Some(outcome) = &lab.result else {
+            lab.png_note = Some("nothing to export: run an analysis first".into());
+            return;
+        };
+        let request = PngRequest {
+            figure: PngFigure::Discrepancy {
+                view: Box::new(vm::discrepancy::result_view(
+                    outcome,
+                    DISCREPANCY_PNG_POINTS,
+                )),
+                width: DISCREPANCY_PNG_WIDTH,
+            },
+            dark: self.settings.dark,
+            path: PathBuf::from(self.settings.forms.disc_png_path.trim()),
+        };
+        match Job::spawn("sim-vs-real PNG", move |c| {
+            super::export_png::run_png_export(request, c)
+        }) {
+            Ok(job) => {
+                lab.png_note = Some("PNG export: drawing…".into());
+                self.discrepancy_png_job = Some(job);
+            }
+            Err(error) => lab.png_note = Some(format!("cannot start the export: {error}")),
         }
     }
 
@@ -934,6 +981,7 @@ impl HmiApp {
                 }
             }
             UiCommand::StartDiscrepancy => self.start_discrepancy(),
+            UiCommand::ExportDiscrepancyPng => self.export_discrepancy_png(),
             UiCommand::CancelDiscrepancy => self.cancel_discrepancy(),
             UiCommand::SetRecording(on) => self.send(SessionCommand::SetRecording(on)),
             UiCommand::ToggleEventKind(kind) => {
@@ -1068,6 +1116,19 @@ impl HmiApp {
                 self.state.model_lab.error = Some(format!("cannot start the fit: {error}"));
             }
         }
+    }
+}
+
+/// What the operator reads once a PNG export ends.
+fn png_note(end: Result<PngOutcome, String>) -> String {
+    match end {
+        Ok(done) => format!(
+            "{}×{} px PNG written to {}",
+            done.size[0],
+            done.size[1],
+            done.path.display()
+        ),
+        Err(reason) => format!("PNG export failed: {reason}"),
     }
 }
 

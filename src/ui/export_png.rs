@@ -33,15 +33,33 @@ pub enum PngError {
     },
 }
 
+/// What a PNG shows.
+#[derive(Debug, Clone)]
+pub enum PngFigure {
+    /// The Trends panel's plots, at a given size in pixels.
+    Trends {
+        /// The plots as shown.
+        view: TrendsView,
+        /// Image size, pixels.
+        size: [u32; 2],
+    },
+    /// A sim-vs-real analysis as the Model lab shows it, `width` pixels wide and as tall as
+    /// the report ([`render_discrepancy`]).
+    Discrepancy {
+        /// The analysis as shown.
+        view: Box<DiscrepancyResultView>,
+        /// Image width, pixels.
+        width: u32,
+    },
+}
+
 /// What to export.
 #[derive(Debug, Clone)]
 pub struct PngRequest {
-    /// The plots as shown.
-    pub view: TrendsView,
+    /// What the image shows.
+    pub figure: PngFigure,
     /// Dark or light theme (as on screen).
     pub dark: bool,
-    /// Image size, pixels.
-    pub size: [u32; 2],
     /// Where to write.
     pub path: PathBuf,
 }
@@ -171,9 +189,12 @@ pub fn run_png_export(
     request: PngRequest,
     context: &JobContext<PngOutcome>,
 ) -> Result<PngOutcome, JobStop> {
-    context.progress("drawing the plots", Some(0.1));
-    let canvas = render_trends(&request.view, request.dark, request.size)
-        .map_err(|e| JobStop::Failed(e.to_string()))?;
+    context.progress("drawing", Some(0.1));
+    let canvas = match &request.figure {
+        PngFigure::Trends { view, size } => render_trends(view, request.dark, *size),
+        PngFigure::Discrepancy { view, width } => render_discrepancy(view, request.dark, *width),
+    }
+    .map_err(|e| JobStop::Failed(e.to_string()))?;
     context.check()?;
     context.progress("writing the PNG", Some(0.8));
     canvas
@@ -181,7 +202,7 @@ pub fn run_png_export(
         .map_err(|e| JobStop::Failed(e.to_string()))?;
     Ok(PngOutcome {
         path: request.path,
-        size: request.size,
+        size: [canvas.width(), canvas.height()],
     })
 }
 

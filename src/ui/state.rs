@@ -442,6 +442,8 @@ pub struct DiscrepancyState {
     pub columns: Option<super::sim_vs_real::SharedColumns>,
     /// Why the headers could not be read.
     pub columns_error: Option<String>,
+    /// How the last PNG export of the result went (or how far it is).
+    pub png_note: Option<String>,
 }
 
 /// A warm-up report the operator signed off, as saved.

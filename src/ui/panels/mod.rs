@@ -122,6 +122,8 @@ pub enum UiCommand {
     CancelFit,
     /// Start the sim-vs-real analysis in the Model lab form.
     StartDiscrepancy,
+    /// Draw the last sim-vs-real analysis into the Model lab's PNG file.
+    ExportDiscrepancyPng,
     /// Cancel the running sim-vs-real analysis (the panel is free at once).
     CancelDiscrepancy,
     /// Switch the recorder on or off.
@@ -185,6 +187,8 @@ pub struct Forms {
     pub disc_real: String,
     /// The sim-vs-real compared column.
     pub disc_target: String,
+    /// Where the sim-vs-real PNG export goes.
+    pub disc_png_path: String,
     /// The Events panel's text filter.
     #[serde(skip)]
     pub event_text: String,

@@ -195,6 +195,15 @@ pub fn discrepancy_ui(
         return;
     };
     ui.separator();
+    ui.horizontal_wrapped(|ui| {
+        labelled_text(ui, "Figure (PNG)", &mut forms.disc_png_path, 320.0);
+        if ui.button("Export PNG").clicked() {
+            commands.push(UiCommand::ExportDiscrepancyPng);
+        }
+        if let Some(note) = &view.png_note {
+            ui.label(note);
+        }
+    });
     egui::ScrollArea::vertical().show(ui, |ui| result_ui(ui, result));
 }
 

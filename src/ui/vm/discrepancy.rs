@@ -132,6 +132,8 @@ pub struct DiscrepancyView {
     pub result: Option<DiscrepancyResultView>,
     /// Why the last analysis failed or stopped (the library's message).
     pub error: Option<String>,
+    /// How the last PNG export of the result went (or how far it is).
+    pub png_note: Option<String>,
 }
 
 /// Builds the view, drawing at most `max_points` points per line.
@@ -147,6 +149,7 @@ pub fn build(state: &HmiState, max_points: usize) -> DiscrepancyView {
         running: d.running.clone(),
         result: d.result.as_ref().map(|o| result_view(o, max_points)),
         error: d.error.clone(),
+        png_note: d.png_note.clone(),
     }
 }
 
