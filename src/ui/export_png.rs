@@ -136,7 +136,7 @@ fn layout_bottom(dark: bool, size: [u32; 2], mut draw: impl FnMut(&mut egui::Ui)
     let mut bottom = 0.0;
     // Twice, as in `render_ui`: the second pass has the first one's measured text.
     for _ in 0..2 {
-        let _ = ctx.run_ui(screen_input(size), |ui| {
+        let mut full = ctx.run_ui(screen_input(size), |ui| {
             egui::CentralPanel::default().show(ui, |ui| {
                 draw(ui);
                 // Where the next widget would go: below everything drawn (the panel's own
@@ -144,6 +144,8 @@ fn layout_bottom(dark: bool, size: [u32; 2], mut draw: impl FnMut(&mut egui::Ui)
                 bottom = ui.cursor().min.y;
             });
         });
+        // Nothing is drawn from this layout: its font textures are not needed.
+        full.textures_delta.clear();
     }
     bottom
 }

@@ -117,7 +117,9 @@ mod tests {
     fn the_explanations_characters_can_be_drawn() {
         let ctx = egui::Context::default();
         install_fonts(&ctx);
-        let _ = ctx.run_ui(egui::RawInput::default(), |_| {});
+        ctx.run_ui(egui::RawInput::default(), |_| {})
+            .textures_delta
+            .clear();
         let font = egui::FontId::proportional(14.0);
         let missing: String = "τ²∝–≈×…—Δ·µ±°≥≤−"
             .chars()
