@@ -194,6 +194,46 @@ pub struct Forms {
     pub event_text: String,
 }
 
+/// `plot` with its value axis on steps of 1, 2 and 5 × 10ⁿ, labelled with as many decimals
+/// as the step needs. egui_plot's default grid steps by powers of ten only, so a plot whose
+/// range spans a few tenths (a residual at the noise floor, ±0.05 °C on 190 points of
+/// height) puts its hundredths 20 points apart, too close for a label, and shows no value but
+/// "0" on its axis.
+pub fn readable_value_axis(plot: egui_plot::Plot<'_>) -> egui_plot::Plot<'_> {
+    plot.y_grid_spacer(egui_plot::uniform_grid_spacer(|input| {
+        let finest = nice_step_at_least(input.base_step_size);
+        let middle = nice_step_at_least(finest * 1.5);
+        [finest, middle, nice_step_at_least(middle * 1.5)]
+    }))
+    .y_axis_formatter(|mark, _| tick_label(mark.value, mark.step_size))
+}
+
+/// The smallest of 1, 2 and 5 × 10ⁿ that is at least `step` (1 for a step that is not a
+/// positive number).
+fn nice_step_at_least(step: f64) -> f64 {
+    if !(step.is_finite() && step > 0.0) {
+        return 1.0;
+    }
+    let decade = 10f64.powf(step.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * decade)
+        .find(|candidate| *candidate >= step * (1.0 - 1e-9))
+        .unwrap_or(10.0 * decade)
+}
+
+/// A tick's value with the decimals its step needs (0.05 → 2, 0.5 → 1, 5 → 0).
+fn tick_label(value: f64, step: f64) -> String {
+    let decimals = if step > 0.0 {
+        (-step.log10() - 1e-9).ceil().clamp(0.0, 12.0) as usize
+    } else {
+        0
+    };
+    // -0.00 reads as a sign error on an axis.
+    let value = if value.abs() < 0.5 * step { 0.0 } else { value };
+    format!("{value:.decimals$}")
+}
+
 /// The colour of a severity.
 pub fn severity_color(severity: Severity) -> egui::Color32 {
     match severity {
@@ -234,4 +274,28 @@ pub fn labelled_text(
     let label = ui.label(label);
     ui.add(egui::TextEdit::singleline(text).desired_width(width))
         .labelled_by(label.id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{nice_step_at_least, tick_label};
+
+    #[test]
+    fn value_axis_steps_are_one_two_five_and_labelled_to_their_decimals() {
+        let steps: Vec<f64> = [0.0042, 0.0075, 0.015, 0.2, 0.21, 3.0, 7.0, 1.0]
+            .into_iter()
+            .map(nice_step_at_least)
+            .collect();
+        let expected = [0.005, 0.01, 0.02, 0.2, 0.5, 5.0, 10.0, 1.0];
+        for (got, want) in steps.iter().zip(expected) {
+            assert!((got - want).abs() < 1e-12 * want, "{got} vs {want}");
+        }
+        assert_eq!(nice_step_at_least(f64::NAN), 1.0);
+        assert_eq!(tick_label(0.04, 0.02), "0.04");
+        assert_eq!(tick_label(-0.05, 0.05), "-0.05");
+        assert_eq!(tick_label(0.5, 0.5), "0.5");
+        assert_eq!(tick_label(-3.0, 1.0), "-3");
+        assert_eq!(tick_label(40.0, 10.0), "40");
+        assert_eq!(tick_label(-1e-18, 0.01), "0.00");
+    }
 }

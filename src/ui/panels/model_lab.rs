@@ -272,7 +272,7 @@ pub fn result_ui(ui: &mut egui::Ui, r: &DiscrepancyResultView) {
         format!("[{}]", p.unit)
     };
     ui.heading("Residual over time (mismatch regions shaded)");
-    Plot::new("discrepancy residual")
+    super::readable_value_axis(Plot::new("discrepancy residual"))
         .height(220.0)
         .legend(Legend::default())
         .link_axis(egui::Id::unique("discrepancy time axis"), [true, false])
@@ -299,7 +299,7 @@ pub fn result_ui(ui: &mut egui::Ui, r: &DiscrepancyResultView) {
         ui.label(&region.text);
     }
     ui.heading("Before and after: real, sim, sim + corrections");
-    Plot::new("discrepancy overlay")
+    super::readable_value_axis(Plot::new("discrepancy overlay"))
         .height(240.0)
         .legend(Legend::default())
         .link_axis(egui::Id::unique("discrepancy time axis"), [true, false])
