@@ -121,8 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             target: args.target.clone(),
         };
         let view = result_view(&DiscrepancyOutcome::new(request, report), PLOT_POINTS);
-        let canvas = render_discrepancy(&view, false, PLOT_WIDTH_PX)
-            .with_context(|| format!("cannot draw {}", path.display()))?;
+        let canvas = render_discrepancy(&view, false, PLOT_WIDTH_PX);
         canvas.save_png(path)?;
         eprintln!(
             "wrote {} ({} × {} px)",

@@ -394,11 +394,8 @@ impl HmiApp {
                 Err(reason) => self.state.depth.error = Some(reason),
             }
         }
-        let mut png_progress = None;
-        if let Some(end) = poll_job(&mut self.png_job, &mut png_progress) {
-            self.export_note = Some(png_note(end));
-        } else if let Some(progress) = png_progress {
-            self.export_note = Some(format!("PNG export: {}", progress.stage));
+        if let Some(note) = poll_png_export(&mut self.png_job) {
+            self.export_note = Some(note);
         }
     }
 
@@ -430,12 +427,8 @@ impl HmiApp {
                 }
             }
         }
-        let mut png_progress = None;
-        if let Some(end) = poll_job(&mut self.discrepancy_png_job, &mut png_progress) {
-            self.state.model_lab.discrepancy.png_note = Some(png_note(end));
-        } else if let Some(progress) = png_progress {
-            self.state.model_lab.discrepancy.png_note =
-                Some(format!("PNG export: {}", progress.stage));
+        if let Some(note) = poll_png_export(&mut self.discrepancy_png_job) {
+            self.state.model_lab.discrepancy.png_note = Some(note);
         }
         let mut ignored = None;
         if let Some(end) = poll_job(&mut self.columns_job, &mut ignored) {
@@ -686,15 +679,9 @@ impl HmiApp {
             dark: self.settings.dark,
             path: PathBuf::from(self.settings.forms.png_path.trim()),
         };
-        match Job::spawn("PNG export", move |c| {
-            super::export_png::run_png_export(request, c)
-        }) {
-            Ok(job) => {
-                self.export_note = Some("PNG export: drawing…".into());
-                self.png_job = Some(job);
-            }
-            Err(error) => self.export_note = Some(format!("cannot start the export: {error}")),
-        }
+        let (job, note) = start_png_export("PNG export", request);
+        self.png_job = job;
+        self.export_note = Some(note);
     }
 
     /// Draws the last sim-vs-real analysis into the Model lab's PNG file, on a job.
@@ -718,15 +705,9 @@ impl HmiApp {
             dark: self.settings.dark,
             path: PathBuf::from(self.settings.forms.disc_png_path.trim()),
         };
-        match Job::spawn("sim-vs-real PNG", move |c| {
-            super::export_png::run_png_export(request, c)
-        }) {
-            Ok(job) => {
-                lab.png_note = Some("PNG export: drawing…".into());
-                self.discrepancy_png_job = Some(job);
-            }
-            Err(error) => lab.png_note = Some(format!("cannot start the export: {error}")),
-        }
+        let (job, note) = start_png_export("sim-vs-real PNG", request);
+        self.discrepancy_png_job = job;
+        lab.png_note = Some(note);
     }
 
     fn use_proposal(&mut self, id: &str) {
@@ -1119,16 +1100,30 @@ impl HmiApp {
     }
 }
 
-/// What the operator reads once a PNG export ends.
-fn png_note(end: Result<PngOutcome, String>) -> String {
-    match end {
-        Ok(done) => format!(
+/// Starts drawing `request` into its PNG on a job; returns the job (`None` when it could not
+/// start) and the note the operator reads meanwhile.
+fn start_png_export(title: &str, request: PngRequest) -> (Option<Job<PngOutcome>>, String) {
+    match Job::spawn(title, move |c| {
+        super::export_png::run_png_export(request, c)
+    }) {
+        Ok(job) => (Some(job), "PNG export: drawing…".into()),
+        Err(error) => (None, format!("cannot start the export: {error}")),
+    }
+}
+
+/// Follows a PNG export: the note the operator reads now (its stage, or how it ended), or
+/// `None` when nothing changed.
+fn poll_png_export(job: &mut Option<Job<PngOutcome>>) -> Option<String> {
+    let mut progress = None;
+    match poll_job(job, &mut progress) {
+        Some(Ok(done)) => Some(format!(
             "{}×{} px PNG written to {}",
             done.size[0],
             done.size[1],
             done.path.display()
-        ),
-        Err(reason) => format!("PNG export failed: {reason}"),
+        )),
+        Some(Err(reason)) => Some(format!("PNG export failed: {reason}")),
+        None => progress.map(|p| format!("PNG export: {}", p.stage)),
     }
 }
 

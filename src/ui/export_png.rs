@@ -78,33 +78,25 @@ pub fn render_trends(view: &TrendsView, dark: bool, size: [u32; 2]) -> Result<Ca
     if view.plots.is_empty() && view.straightness.is_empty() {
         return Err(PngError::Empty);
     }
-    render_ui(dark, size, |ui| {
+    Ok(render_ui(dark, size[0], Height::Fixed(size[1]), |ui| {
         ui.heading(format!(
             "servosight trends — machine time {:.1} s to {:.1} s",
             view.t0, view.t1
         ));
         ui.label(&view.resolution);
         super::panels::trends::plots_ui(ui, view, true, None);
-    })
+    }))
 }
 
 /// Draws a sim-vs-real analysis as the Model lab shows it (verdict, fit before and after,
 /// findings, the residual with its mismatch regions, real vs sim vs corrected) into an image
 /// `width` pixels wide and as tall as its content (at most [`MAX_HEIGHT`]): `servosight
 /// discrepancy --plot`.
-pub fn render_discrepancy(
-    view: &DiscrepancyResultView,
-    dark: bool,
-    width: u32,
-) -> Result<Canvas, PngError> {
-    let draw = |ui: &mut egui::Ui| {
+pub fn render_discrepancy(view: &DiscrepancyResultView, dark: bool, width: u32) -> Canvas {
+    render_ui(dark, width, Height::Content { max: MAX_HEIGHT }, |ui| {
         ui.heading(format!("servosight discrepancy — {}", view.target));
         super::panels::model_lab::result_ui(ui, view);
-    };
-    // Laid out once on a page taller than any report, to find where the content ends.
-    let bottom = layout_bottom(dark, [width, MAX_HEIGHT], draw);
-    let height = (bottom.ceil() as u32 + 12).clamp(64, MAX_HEIGHT);
-    render_ui(dark, [width, height], draw)
+    })
 }
 
 /// The tallest image [`render_discrepancy`] makes, pixels.
@@ -130,60 +122,79 @@ fn themed_context(dark: bool) -> egui::Context {
     ctx
 }
 
-/// Where the content `draw` adds to a central panel of `size` ends, points from the top.
-fn layout_bottom(dark: bool, size: [u32; 2], mut draw: impl FnMut(&mut egui::Ui)) -> f32 {
-    let ctx = themed_context(dark);
-    let mut bottom = 0.0;
-    // Twice, as in `render_ui`: the second pass has the first one's measured text.
-    for _ in 0..2 {
-        let mut full = ctx.run_ui(screen_input(size), |ui| {
-            egui::CentralPanel::default().show(ui, |ui| {
-                draw(ui);
-                // Where the next widget would go: below everything drawn (the panel's own
-                // rectangle fills the page whatever its content).
-                bottom = ui.cursor().min.y;
-            });
-        });
-        // Nothing is drawn from this layout: its font textures are not needed.
-        full.textures_delta.clear();
-    }
-    bottom
+/// How tall an image is.
+#[derive(Debug, Clone, Copy)]
+enum Height {
+    /// This many pixels.
+    Fixed(u32),
+    /// As tall as what is drawn, at most `max` pixels.
+    Content {
+        /// The tallest image.
+        max: u32,
+    },
 }
 
 /// Runs `draw` in a central panel of a private egui context and rasterises what it paints.
 fn render_ui(
     dark: bool,
-    size: [u32; 2],
+    width: u32,
+    height: Height,
     mut draw: impl FnMut(&mut egui::Ui),
-) -> Result<Canvas, PngError> {
+) -> Canvas {
     let ctx = themed_context(dark);
     let mut textures: HashMap<TextureId, ColorImage> = HashMap::new();
-    let mut output = None;
-    // The first pass lays out (plots size their axes from the text they measured); the
-    // second draws the settled layout.
-    for _ in 0..2 {
-        let full = ctx.run_ui(screen_input(size), |ui| {
-            egui::CentralPanel::default().show(ui, |ui| draw(ui));
-        });
-        let mut full = full;
-        for (id, deltas) in &full.textures_delta.set {
-            for delta in deltas {
-                apply_delta(&mut textures, *id, delta);
-            }
-        }
-        full.textures_delta.clear();
-        output = Some(full);
-    }
-    let Some(full) = output else {
-        return Err(PngError::Empty);
+    let page = match height {
+        Height::Fixed(h) | Height::Content { max: h } => h,
     };
+    let (mut full, bottom) = run_twice(&ctx, [width, page], &mut draw, &mut textures);
+    let mut size = [width, page];
+    if let Height::Content { max } = height {
+        // Laid out on a page taller than the content first, to find where it ends.
+        let fitted = (bottom.ceil() as u32 + 12).clamp(64, max);
+        if fitted != page {
+            size = [width, fitted];
+            full = run_twice(&ctx, size, &mut draw, &mut textures).0;
+        }
+    }
     let ppp = full.pixels_per_point;
     let primitives = ctx.tessellate(full.shapes, ppp);
     let mut canvas = Canvas::new(size[0], size[1]);
     for primitive in &primitives {
         canvas.fill_primitive(primitive, ppp, &textures);
     }
-    Ok(canvas)
+    canvas
+}
+
+/// Two passes of `draw` on a page of `size` pixels: the first lays out (plots size their axes
+/// from the text they measured), the second draws the settled layout. The font textures both
+/// ask for go into `textures`. Returns the second pass's output and where its content ends,
+/// points from the top (where the next widget would go: the panel's own rectangle fills the
+/// page whatever its content).
+fn run_twice(
+    ctx: &egui::Context,
+    size: [u32; 2],
+    draw: &mut impl FnMut(&mut egui::Ui),
+    textures: &mut HashMap<TextureId, ColorImage>,
+) -> (egui::FullOutput, f32) {
+    let mut bottom = 0.0;
+    let mut pass = || {
+        let mut full = ctx.run_ui(screen_input(size), |ui| {
+            egui::CentralPanel::default().show(ui, |ui| {
+                draw(ui);
+                bottom = ui.cursor().min.y;
+            });
+        });
+        for (id, deltas) in &full.textures_delta.set {
+            for delta in deltas {
+                apply_delta(textures, *id, delta);
+            }
+        }
+        full.textures_delta.clear();
+        full
+    };
+    pass();
+    let full = pass();
+    (full, bottom)
 }
 
 /// Renders and writes the PNG (a job's work).
@@ -194,7 +205,9 @@ pub fn run_png_export(
     context.progress("drawing", Some(0.1));
     let canvas = match &request.figure {
         PngFigure::Trends { view, size } => render_trends(view, request.dark, *size),
-        PngFigure::Discrepancy { view, width } => render_discrepancy(view, request.dark, *width),
+        PngFigure::Discrepancy { view, width } => {
+            Ok(render_discrepancy(view, request.dark, *width))
+        }
     }
     .map_err(|e| JobStop::Failed(e.to_string()))?;
     context.check()?;
