@@ -26,6 +26,23 @@ pub fn arg(path: &Path) -> &str {
     path.to_str().expect("temporary paths are UTF-8")
 }
 
+/// How many pixels of `image` are within 12 of `colour` in each of red, green and blue (a
+/// drawn line's anti-aliased core).
+pub fn pixels_near(image: &image::RgbaImage, colour: [u8; 3]) -> usize {
+    image
+        .pixels()
+        .filter(|p| (0..3).all(|k| (i32::from(p[k]) - i32::from(colour[k])).abs() <= 12))
+        .count()
+}
+
+/// How many pixels of `image` are light (every channel above 200): a light theme's page.
+pub fn light_pixels(image: &image::RgbaImage) -> usize {
+    image
+        .pixels()
+        .filter(|p| p[0] > 200 && p[1] > 200 && p[2] > 200)
+        .count()
+}
+
 /// Set in a child process started by [`in_own_process`]: the test runs its body there.
 const OWN_PROCESS_VARIABLE: &str = "SERVOSIGHT_TEST_IN_OWN_PROCESS";
 

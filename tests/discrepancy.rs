@@ -13,7 +13,7 @@ use servosight::discrepancy::{DiscrepancyReport, Options, Verdict, analyse};
 use servosight::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 use servosight::sim::{Effect, EffectSet, MachineParams, ScenarioKind, TwinConfig, simulate};
 
-use crate::common::{arg, servosight, stderr, stdout};
+use crate::common::{arg, light_pixels, pixels_near, servosight, stderr, stdout};
 
 /// The noise of the real run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -1200,25 +1200,13 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
     let (width, height) = image.dimensions();
     assert_eq!(width, 1400);
     assert!((600..2000).contains(&height), "{height} px tall");
-    let near = |p: &image::Rgba<u8>, c: [u8; 3]| {
-        (0..3).all(|k| (i32::from(p[k]) - i32::from(c[k])).abs() <= 12)
-    };
-    let red = image
-        .pixels()
-        .filter(|p| near(p, [0xd0, 0x30, 0x30]))
-        .count();
-    let green = image
-        .pixels()
-        .filter(|p| near(p, [0x2e, 0xa0, 0x43]))
-        .count();
+    let red = pixels_near(&image, [0xd0, 0x30, 0x30]);
+    let green = pixels_near(&image, [0x2e, 0xa0, 0x43]);
     assert!(
         red > 300 && green > 300,
         "{red} red and {green} green pixels"
     );
-    let light = image
-        .pixels()
-        .filter(|p| p[0] > 200 && p[1] > 200 && p[2] > 200)
-        .count();
+    let light = light_pixels(&image);
     assert!(
         light > (width * height / 2) as usize,
         "{light} light pixels"

@@ -998,23 +998,11 @@ fn trends_show_the_straightness_profile_and_export_a_png() {
     // The first series' colour (the Trends palette's blue: ten seconds of X stator in a
     // one-minute window) and the straightness profile's red are drawn, and the light
     // theme's background fills most of the image: a real plot, not a blank or black page.
-    let near = |p: &image::Rgba<u8>, c: [u8; 3]| {
-        (0..3).all(|k| (i32::from(p[k]) - i32::from(c[k])).abs() <= 12)
-    };
-    let blue = image
-        .pixels()
-        .filter(|p| near(p, [0x1f, 0x77, 0xb4]))
-        .count();
+    let blue = crate::common::pixels_near(&image, [0x1f, 0x77, 0xb4]);
     assert!(blue > 100, "{blue} blue pixels");
-    let red = image
-        .pixels()
-        .filter(|p| near(p, [0xd6, 0x27, 0x28]))
-        .count();
+    let red = crate::common::pixels_near(&image, [0xd6, 0x27, 0x28]);
     assert!(red > 500, "{red} red pixels");
-    let light = image
-        .pixels()
-        .filter(|p| p[0] > 200 && p[1] > 200 && p[2] > 200)
-        .count();
+    let light = crate::common::light_pixels(&image);
     assert!(light > 900 * 900 / 2, "{light} light pixels");
     let empty = vm::trends::build(&state("normal"), &TrendsSettings::default(), 1000);
     assert!(servosight::ui::export_png::render_trends(&empty, false, [100, 100]).is_err());
