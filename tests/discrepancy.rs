@@ -324,8 +324,16 @@ fn print_outcome(o: &Outcome) {
     );
 }
 
+/// The concealed effect's size in the target's unit (noiseless real − sim).
+struct EffectSize {
+    /// Between its 1st and 99th percentiles.
+    range: f64,
+    /// Its mean over the recording.
+    mean: f64,
+}
+
 /// The truth a finding's parameters are checked against, where the physics gives one.
-fn check_parameters(case: &Case, outcome: &Outcome, pair_effect_range: f64) -> Vec<String> {
+fn check_parameters(case: &Case, outcome: &Outcome, truth: &EffectSize) -> Vec<String> {
     let mut problems = Vec::new();
     let Some(id) = case.omitted.first().map(|e| e.id()) else {
         return problems;
@@ -367,6 +375,13 @@ fn check_parameters(case: &Case, outcome: &Outcome, pair_effect_range: f64) -> V
             );
         }
         Effect::AmbientTemperature => near("gain_per_K", get("gain_per_K"), 1.0, 0.2),
+        // The sentence's "runs … lower on average" is the mean of the concealed cooling.
+        Effect::Coolant => near(
+            "mean_effect",
+            get("mean_effect"),
+            truth.mean,
+            0.25 * truth.mean.abs(),
+        ),
         Effect::CoulombReversal => {
             // Seal friction through the screw: F · lead / (2π η).
             let x = &machine.x_axis;
@@ -382,8 +397,8 @@ fn check_parameters(case: &Case, outcome: &Outcome, pair_effect_range: f64) -> V
     near(
         "effect_range",
         get("effect_range"),
-        pair_effect_range,
-        0.3 * pair_effect_range,
+        truth.range,
+        0.3 * truth.range,
     );
     problems
 }
@@ -476,7 +491,11 @@ pub fn verify_case(case: &Case, options: &Options) -> (Outcome, Checks) {
         let mut sorted = effect.clone();
         sorted.sort_by(f64::total_cmp);
         let q = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
-        checks.parameter_misses = check_parameters(case, &outcome, q(0.99) - q(0.01));
+        let truth = EffectSize {
+            range: q(0.99) - q(0.01),
+            mean: m,
+        };
+        checks.parameter_misses = check_parameters(case, &outcome, &truth);
     }
     (outcome, checks)
 }

@@ -1554,12 +1554,33 @@ pub fn explain(
                     .collect();
                 mean(&values)
             };
-            let shift = split(true) - split(false);
-            p.insert("effect_while_on".into(), shift);
+            // The heat path is slow: the part stays cooler for as long as the coolant keeps
+            // flowing on and off, so the difference between the on and the off samples is a
+            // small part of the effect. The mean and the extreme of the whole correction say
+            // how much colder (or warmer) the part runs.
+            let on_vs_off = split(true) - split(false);
+            let average = mean(&total);
+            let extreme = if average < 0.0 {
+                quantile(&total, 0.01)
+            } else {
+                quantile(&total, 0.99)
+            };
+            let flowing = 100.0 * mean(coolant);
+            p.insert("mean_effect".into(), average);
+            p.insert("largest_effect".into(), extreme);
+            p.insert("difference_on_vs_off".into(), on_vs_off);
+            p.insert("coolant_share".into(), flowing / 100.0);
+            let (how, direction) = if average < 0.0 {
+                ("more", "lower")
+            } else {
+                ("less", "higher")
+            };
             format!(
-                "while coolant flows (`{COOLANT}` = 1) the {target} is {:.3}{unit} {} than simulated on average, settling with τ = {tau_min:.0} min",
-                shift.abs(),
-                if shift < 0.0 { "lower" } else { "higher" }
+                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off)",
+                average.abs(),
+                extreme.abs(),
+                on_vs_off.abs(),
+                if on_vs_off < 0.0 { "lower" } else { "higher" }
             )
         }
         Kind::Physics(Physics::SpeedDependentCooling) => {

@@ -269,10 +269,16 @@ fn parameter_value(name: &str, value: f64, target_unit: &str) -> String {
         "per_krpm" => per("/krpm"),
         "per_krpm2" => per("/krpm²"),
         "lowest_at" | "highest_at" => "mm".into(),
-        "effect_range" | "effect_while_on" | "at_rms_current" | "friction_change"
-        | "friction_step" | "stribeck_excess" | "variation" | "offset_at_start" => {
-            target_unit.to_string()
-        }
+        "effect_range"
+        | "mean_effect"
+        | "largest_effect"
+        | "difference_on_vs_off"
+        | "at_rms_current"
+        | "friction_change"
+        | "friction_step"
+        | "stribeck_excess"
+        | "variation"
+        | "offset_at_start" => target_unit.to_string(),
         // share, gain, exponent, relative_change_at_1000rpm: ratios.
         _ => String::new(),
     };
