@@ -51,6 +51,7 @@ pub use report::{
     NoiseFloor, NotTested, PlotData, StepTrace, Verdict,
 };
 
+use crate::fit::autocorrelation::white_noise_from_differences;
 use align::Aligned;
 use cv::{Blocks, ModelGram, TargetStats, least_squares};
 use library::{Context, Family, Kind, families};
@@ -657,6 +658,7 @@ fn analyse_watched(
         rms: series::rms(&cv_residual),
         correlation_time_s: integrated_autocorrelation(&cv_residual, (n / 10).clamp(2, 20_000))
             * ctx.step_s,
+        sample_noise_rms: white_noise_from_differences(&cv_residual),
         window_s: located.window_s,
     };
 

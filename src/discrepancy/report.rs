@@ -82,8 +82,44 @@ pub struct NoiseFloor {
     pub rms: f64,
     /// Integrated autocorrelation time, s (white noise: one sample interval).
     pub correlation_time_s: f64,
+    /// The part that changes from one sample to the next (white-noise σ from the successive
+    /// differences), target unit. What is left beyond it is slow: correlated noise, or an
+    /// effect that is too weak to name or that the corrections do not follow exactly, which
+    /// the residual alone cannot tell apart.
+    pub sample_noise_rms: f64,
     /// Window of the localisation's power estimates, s.
     pub window_s: f64,
+}
+
+impl NoiseFloor {
+    /// The RMS of the slow part: what is left beyond the sample-to-sample noise.
+    pub fn slow_rms(&self) -> f64 {
+        (self.rms * self.rms - self.sample_noise_rms * self.sample_noise_rms)
+            .max(0.0)
+            .sqrt()
+    }
+
+    /// What the slow part may be, when it holds a fifth of the floor's power or more (slow
+    /// at half the sample-to-sample RMS or above): a reader should not take it for the
+    /// instrument's noise alone.
+    pub fn slow_reading(&self) -> Option<&'static str> {
+        (self.slow_rms() >= 0.5 * self.sample_noise_rms)
+            .then_some("slow noise, or physics the corrections have not captured")
+    }
+
+    /// One line: the floor, its correlation time, and how much of it is slow.
+    pub fn describe(&self, unit: &str) -> String {
+        let reading = self
+            .slow_reading()
+            .map_or(String::new(), |r| format!(" ({r})"));
+        format!(
+            "noise floor: RMS {:.4} {unit}, correlation time {:.0} s; {:.4} {unit} from sample to sample, {:.4} {unit} slow{reading}",
+            self.rms,
+            self.correlation_time_s,
+            self.sample_noise_rms,
+            self.slow_rms()
+        )
+    }
 }
 
 /// How the recordings were joined.
@@ -234,11 +270,7 @@ impl DiscrepancyReport {
             self.improved.rmse
         );
         let _ = writeln!(s, "  {}", self.calibration.explanation);
-        let _ = writeln!(
-            s,
-            "  noise floor: RMS {:.4} {unit}, correlation time {:.0} s",
-            self.noise_floor.rms, self.noise_floor.correlation_time_s
-        );
+        let _ = writeln!(s, "  {}", self.noise_floor.describe(unit));
         if self.findings.is_empty() {
             let _ = writeln!(s, "\nNo missing physics found.");
         } else {

@@ -1,6 +1,7 @@
 //! Runs the estimator pipeline over a recording and scores every estimate against its
 //! reference column, like the paper's Table 3.
 
+use crate::fit::autocorrelation::white_noise_from_differences;
 use crate::profile::MachineProfile;
 use crate::signal::{AxisId, Recording};
 
@@ -101,7 +102,8 @@ pub fn score(id: &str, reference_name: &str, estimate: &[f64], reference: &[f64]
     let mean = pairs.iter().map(|(_, r)| r).sum::<f64>() / n.max(1) as f64;
     let sse: f64 = pairs.iter().map(|(e, r)| (r - e).powi(2)).sum();
     let sst: f64 = pairs.iter().map(|(_, r)| (r - mean).powi(2)).sum();
-    let reference_noise = white_noise_from_differences(pairs.iter().map(|(_, r)| *r));
+    let reference: Vec<f64> = pairs.iter().map(|(_, r)| *r).collect();
+    let reference_noise = white_noise_from_differences(&reference);
     let (mse, variance) = (sse / n.max(1) as f64, sst / n.max(1) as f64);
     let noise_variance = reference_noise * reference_noise;
     let r2_noise_corrected = (noise_variance < 0.5 * variance)
@@ -116,19 +118,6 @@ pub fn score(id: &str, reference_name: &str, estimate: &[f64], reference: &[f64]
         reference_noise,
         r2_noise_corrected,
     }
-}
-
-/// White-noise σ of a slowly varying series from its first differences: a difference of two
-/// samples carries √2·σ of noise, and the median ignores the few real steps.
-fn white_noise_from_differences(series: impl Iterator<Item = f64>) -> f64 {
-    let values: Vec<f64> = series.collect();
-    let mut differences: Vec<f64> = values.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
-    if differences.is_empty() {
-        return 0.0;
-    }
-    let middle = differences.len() / 2;
-    let (_, median, _) = differences.select_nth_unstable_by(middle, f64::total_cmp);
-    *median / (0.674_489_75 * std::f64::consts::SQRT_2)
 }
 
 #[cfg(test)]

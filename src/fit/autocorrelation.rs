@@ -3,7 +3,8 @@
 //!
 //! Servo and temperature residuals at 1 Hz are correlated over minutes to hours: 14 400 samples
 //! of a four-hour run may carry the evidence of ten. Tests that count every sample call any
-//! drift significant; these count what the data can support.
+//! drift significant; these count what the data can support. And how much of a series'
+//! noise is white: what changes from one sample to the next.
 
 use super::distributions::student_t_two_sided_p;
 
@@ -83,6 +84,21 @@ pub fn mean_above_zero(series: &[f64]) -> MeanTest {
     }
 }
 
+/// White-noise σ of a slowly varying series from its first differences: a difference of two
+/// samples carries √2·σ of white noise and almost none of what varies slowly (correlated
+/// noise, drift, heat), and the median ignores the few real steps. 0 for fewer than two
+/// samples, and for a series quantised so coarsely that most samples repeat the one before.
+pub fn white_noise_from_differences(series: &[f64]) -> f64 {
+    let mut differences: Vec<f64> = series.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    if differences.is_empty() {
+        return 0.0;
+    }
+    let middle = differences.len() / 2;
+    let (_, median, _) = differences.select_nth_unstable_by(middle, f64::total_cmp);
+    // The median of |N(0, 2σ²)| is 0.6745 · √2 · σ.
+    *median / (0.674_489_75 * std::f64::consts::SQRT_2)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,5 +161,42 @@ mod tests {
         assert!(test.p_value < 1e-6, "{test:?}");
         let negative: Vec<f64> = series.iter().map(|x| -x).collect();
         assert!(mean_above_zero(&negative).p_value > 0.99);
+    }
+
+    #[test]
+    fn the_white_part_of_a_series_is_told_from_its_slow_part_and_its_steps() {
+        // σ = 0.3 Gaussian noise (Box–Muller on a seeded stream) on a slow AR(1) wander larger
+        // than it (correlation time 10 000 samples, so it changes by 0.02 from one sample to
+        // the next), with four steps of 10: the successive differences see the 0.3 alone.
+        let mut state = 11u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let slow = ar1(0.9999, 50_000, 9);
+        let series: Vec<f64> = slow
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let gaussian =
+                    (-2.0 * uniform().ln()).sqrt() * (2.0 * std::f64::consts::PI * uniform()).cos();
+                let steps = 10.0 * (k / 10_000) as f64;
+                0.02 * s + 0.3 * gaussian + steps
+            })
+            .collect();
+        let slow_spread = {
+            let part: Vec<f64> = slow.iter().map(|s| 0.02 * s).collect();
+            let m = part.iter().sum::<f64>() / part.len() as f64;
+            (part.iter().map(|v| (v - m).powi(2)).sum::<f64>() / part.len() as f64).sqrt()
+        };
+        assert!(
+            slow_spread > 0.6,
+            "the wander is larger than the noise: {slow_spread}"
+        );
+        let white = white_noise_from_differences(&series);
+        assert!((white / 0.3 - 1.0).abs() < 0.05, "{white}");
+        assert_eq!(white_noise_from_differences(&[1.0]), 0.0);
     }
 }

@@ -197,6 +197,7 @@ mod tests {
             noise_floor: crate::discrepancy::NoiseFloor {
                 rms: 0.0,
                 correlation_time_s: 1.0,
+                sample_noise_rms: 0.0,
                 window_s: 1.0,
             },
             alignment: crate::discrepancy::Alignment {

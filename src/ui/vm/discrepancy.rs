@@ -207,9 +207,14 @@ pub fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> Discrepan
             quality("after: sim + corrections (held out)", r.improved),
         ],
         noise_floor: format!(
-            "noise floor: RMS {}, correlation time {}",
+            "noise floor: RMS {}, correlation time {}; {} from sample to sample, {} slow{}",
             with_unit(statistic(r.noise_floor.rms)),
-            duration(r.noise_floor.correlation_time_s)
+            duration(r.noise_floor.correlation_time_s),
+            with_unit(statistic(r.noise_floor.sample_noise_rms)),
+            with_unit(statistic(r.noise_floor.slow_rms())),
+            r.noise_floor
+                .slow_reading()
+                .map_or(String::new(), |reading| format!(" ({reading})"))
         ),
         findings: r
             .findings
