@@ -15,7 +15,21 @@ pub const MIN_ROWS: usize = 60;
 const COARSER_FACTOR: f64 = 1.5;
 
 /// For each aligned row: the source row at or before it and the fraction towards the next.
-type Index = Vec<(usize, f64)>;
+pub type Index = Vec<(usize, f64)>;
+
+/// Most rows the real recording may have inside the overlap for the corrections to be built
+/// at its own rate when the comparison runs at a coarser simulation's instants (see
+/// [`Aligned::real_rate`]): ten times the rows the performance target allows an analysis.
+pub const REAL_RATE_MAX_ROWS: usize = 1_000_000;
+
+/// Which grid the rows are put on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Grid {
+    /// The real recording's, unless the simulation's is clearly coarser.
+    Auto,
+    /// The real recording's.
+    Real,
+}
 
 /// The two recordings joined on `time_s`.
 #[derive(Debug)]
@@ -48,6 +62,44 @@ impl<'a> Aligned<'a> {
         sim: &'a Recording,
         real: &'a Recording,
         target: &str,
+    ) -> Result<Self, DiscrepancyError> {
+        Self::join(sim, real, target, Grid::Auto)
+    }
+
+    /// When the rows are the coarser simulation's instants: the same pair on the real
+    /// recording's own rows inside the same span, on which the corrections are built before
+    /// they are read at those instants. A heat path integrates its driver between the
+    /// simulation's samples (a current that rises for a few seconds of a cut), and a lag of
+    /// the driver read only at those instants misses what happened between them. `None` when
+    /// the rows already are the real recording's, or when it has more than
+    /// [`REAL_RATE_MAX_ROWS`] rows in the span (then the corrections are built at the
+    /// simulation's instants, as the note says).
+    pub fn real_rate(&self, target: &str) -> Option<Aligned<'a>> {
+        if !self.builds_at_real_rate() {
+            return None;
+        }
+        Self::join(self.sim, self.real, target, Grid::Real).ok()
+    }
+
+    /// Whether [`Aligned::real_rate`] gives the real recording's rows.
+    fn builds_at_real_rate(&self) -> bool {
+        self.on_simulation_grid && self.real_rows_in_span() <= REAL_RATE_MAX_ROWS
+    }
+
+    /// Rows of the real recording inside the aligned span.
+    fn real_rows_in_span(&self) -> usize {
+        let (Some(&start), Some(&end)) = (self.time.first(), self.time.last()) else {
+            return 0;
+        };
+        let rt = self.real.time();
+        rt.partition_point(|&t| t <= end) - rt.partition_point(|&t| t < start)
+    }
+
+    fn join(
+        sim: &'a Recording,
+        real: &'a Recording,
+        target: &str,
+        grid: Grid,
     ) -> Result<Self, DiscrepancyError> {
         for (recording, role) in [(sim, "simulation"), (real, "real recording")] {
             if recording.try_column(target).is_none() {
@@ -87,7 +139,7 @@ impl<'a> Aligned<'a> {
         // A simulation too sparse to give the fewest rows an analysis needs (a handful of FEA
         // time points) is still compared on the real grid, interpolated, as a slow target
         // allows.
-        let coarse = (sim_step > COARSER_FACTOR * real_step)
+        let coarse = (grid == Grid::Auto && sim_step > COARSER_FACTOR * real_step)
             .then(|| inside(st))
             .filter(|time| time.len() >= MIN_ROWS);
         let on_simulation_grid = coarse.is_some();
@@ -152,8 +204,13 @@ impl<'a> Aligned<'a> {
             self.time.last().copied().unwrap_or(0.0)
         );
         let joined = if self.on_simulation_grid {
+            let built = if self.builds_at_real_rate() {
+                "the corrections were built on the real recording's own rows and read at those instants"
+            } else {
+                "the corrections were built at those instants (the real recording has too many rows to build them on its own)"
+            };
             format!(
-                "the simulation's grid is coarser: the real recording ({} rows) was compared at the simulation's instants (linearly interpolated where they fall between its rows), since between its samples the simulation holds nothing to compare; {span}",
+                "the simulation's grid is coarser: the real recording ({} rows) was compared at the simulation's instants (linearly interpolated where they fall between its rows), since between its samples the simulation holds nothing to compare; {built}; {span}",
                 self.real.len()
             )
         } else if self.resampled {
@@ -186,7 +243,7 @@ impl<'a> Aligned<'a> {
 /// Where each of `times` lies in the increasing `source` times: the row at or before it and
 /// the fraction towards the next; and whether any falls between rows (by more than a
 /// millionth of `step`).
-fn index_onto(source: &[f64], times: &[f64], step: f64) -> (Index, bool) {
+pub fn index_onto(source: &[f64], times: &[f64], step: f64) -> (Index, bool) {
     let mut index = Vec::with_capacity(times.len());
     let mut j = 0usize;
     let mut resampled = false;
@@ -208,7 +265,7 @@ fn index_onto(source: &[f64], times: &[f64], step: f64) -> (Index, bool) {
 }
 
 /// `column` read at `index` by linear interpolation.
-fn interpolate(column: &[f64], index: &Index) -> Vec<f64> {
+pub fn interpolate(column: &[f64], index: &Index) -> Vec<f64> {
     index
         .iter()
         .map(|&(j, f)| {

@@ -9,7 +9,9 @@
 
 use std::collections::BTreeMap;
 use std::fmt;
+use std::sync::Arc;
 
+use super::align::{Index, index_onto, interpolate};
 use super::series::{
     legendre, lowpass_on_grid, mean, quantile, robust_sigma, shifted, smooth_sign,
 };
@@ -246,6 +248,29 @@ pub struct Context {
     /// switched off reports exactly zero current whatever its sensor's offset. `None` when it
     /// reads everywhere.
     pub reading: Option<Vec<f64>>,
+    /// When these rows are a coarser simulation's instants: the real recording's own rows,
+    /// on which the corrections are built before they are read here
+    /// ([`super::align::Aligned::real_rate`]).
+    pub real_rate: Option<Arc<RealRate>>,
+}
+
+/// The context on the real recording's own rows, and how its rows and the compared ones
+/// (a coarser simulation's instants) map onto each other.
+#[derive(Debug)]
+pub struct RealRate {
+    /// The context on the real recording's rows.
+    pub context: Context,
+    /// Where each compared row lies among the real recording's rows.
+    compared_in_real: Arc<Index>,
+    /// Where each of the real recording's rows lies among the compared rows.
+    real_in_compared: Arc<Index>,
+}
+
+impl RealRate {
+    /// A column built on the real recording's rows, read at the compared rows.
+    pub fn read(&self, column: &[f64]) -> Vec<f64> {
+        interpolate(column, &self.compared_in_real)
+    }
 }
 
 /// Columns (full rate) of one candidate member.
@@ -382,6 +407,23 @@ impl fmt::Debug for Family {
 impl Context {
     /// Collects the signals for `target` from the aligned recordings.
     pub fn new(aligned: &super::align::Aligned<'_>, target: &str) -> Context {
+        let mut context = Context::on_rows(aligned, target);
+        if let Some(real) = aligned.real_rate(target) {
+            let fine = Context::on_rows(&real, target);
+            let step = fine.step_s.min(context.step_s);
+            let (compared_in_real, _) = index_onto(&fine.time, &context.time, step);
+            let (real_in_compared, _) = index_onto(&context.time, &fine.time, step);
+            context.real_rate = Some(Arc::new(RealRate {
+                context: fine,
+                compared_in_real: Arc::new(compared_in_real),
+                real_in_compared: Arc::new(real_in_compared),
+            }));
+        }
+        context
+    }
+
+    /// The context on the aligned rows alone.
+    fn on_rows(aligned: &super::align::Aligned<'_>, target: &str) -> Context {
         let class = TargetClass::of(target);
         let unit = Channel::unit_of(target).unwrap_or("").to_string();
         let time = aligned.time.clone();
@@ -464,17 +506,27 @@ impl Context {
                 }
                 _ => None,
             },
+            real_rate: None,
         }
     }
 
     /// The context with the target's state corrected by `correction` (the fitted physics
     /// the simulation lacked): the simulated target and its excess move by it, every measured
-    /// signal stays. Families marked [`Family::state`] are rebuilt on it.
+    /// signal stays. Families marked [`Family::state`] are rebuilt on it. On the real
+    /// recording's own rows the correction is interpolated between the compared ones.
     pub fn with_state(&self, correction: &[f64]) -> Context {
         let mut out = self.clone();
         for ((s, e), c) in out.sim.iter_mut().zip(&mut out.excess).zip(correction) {
             *s += c;
             *e += c;
+        }
+        if let Some(real) = &self.real_rate {
+            let on_real_rows = interpolate(correction, &real.real_in_compared);
+            out.real_rate = Some(Arc::new(RealRate {
+                context: real.context.with_state(&on_real_rows),
+                compared_in_real: Arc::clone(&real.compared_in_real),
+                real_in_compared: Arc::clone(&real.real_in_compared),
+            }));
         }
         out
     }

@@ -265,8 +265,21 @@ struct Selected {
     step: Step,
 }
 
-/// Builds a member's full-rate columns; empty when the family could not build them.
+/// Builds a member's full-rate columns; empty when the family could not build them. When the
+/// rows are a coarser simulation's instants, the columns are built on the real recording's
+/// own rows and read at those instants.
 fn build(family: &Family, ctx: &Context, theta: &[f64]) -> Vec<Vec<f64>> {
+    match &ctx.real_rate {
+        Some(real) => build_on_rows(family, &real.context, theta)
+            .iter()
+            .map(|c| real.read(c))
+            .collect(),
+        None => build_on_rows(family, ctx, theta),
+    }
+}
+
+/// A member's columns on the context's own rows; empty when the family could not build them.
+fn build_on_rows(family: &Family, ctx: &Context, theta: &[f64]) -> Vec<Vec<f64>> {
     let columns = (family.build)(ctx, theta);
     if columns
         .iter()
