@@ -201,11 +201,28 @@ pub struct Forms {
 /// "0" on its axis.
 pub fn readable_value_axis(plot: egui_plot::Plot<'_>) -> egui_plot::Plot<'_> {
     plot.y_grid_spacer(egui_plot::uniform_grid_spacer(|input| {
-        let finest = nice_step_at_least(input.base_step_size);
-        let middle = nice_step_at_least(finest * 1.5);
-        [finest, middle, nice_step_at_least(middle * 1.5)]
+        grid_steps(input.base_step_size)
     }))
     .y_axis_formatter(|mark, _| tick_label(mark.value, mark.step_size))
+}
+
+/// The value axis's three grid levels from the finest step the plot can show: each a 1, 2 or
+/// 5 × 10ⁿ step and a whole multiple of the one below (1 → 2 → 10, 2 → 10 → 20,
+/// 5 → 10 → 20), so every coarser line is also a finer one. Levels that do not nest (2 and 5)
+/// put labels of both on the axis, 24 and 25 a step apart.
+fn grid_steps(base_step: f64) -> [f64; 3] {
+    let finest = nice_step_at_least(base_step);
+    let coarser = |step: f64| {
+        let decade = 10f64.powf(step.log10().floor());
+        let leading = (step / decade).round();
+        if leading == 2.0 {
+            5.0 * step
+        } else {
+            2.0 * step
+        }
+    };
+    let middle = coarser(finest);
+    [finest, middle, coarser(middle)]
 }
 
 /// The smallest of 1, 2 and 5 × 10ⁿ that is at least `step` (1 for a step that is not a
@@ -278,10 +295,10 @@ pub fn labelled_text(
 
 #[cfg(test)]
 mod tests {
-    use super::{nice_step_at_least, tick_label};
+    use super::{grid_steps, nice_step_at_least, tick_label};
 
     #[test]
-    fn value_axis_steps_are_one_two_five_and_labelled_to_their_decimals() {
+    fn value_axis_steps_are_one_two_five_nest_and_are_labelled_to_their_decimals() {
         let steps: Vec<f64> = [0.0042, 0.0075, 0.015, 0.2, 0.21, 3.0, 7.0, 1.0]
             .into_iter()
             .map(nice_step_at_least)
@@ -291,6 +308,24 @@ mod tests {
             assert!((got - want).abs() < 1e-12 * want, "{got} vs {want}");
         }
         assert_eq!(nice_step_at_least(f64::NAN), 1.0);
+        for (base, want) in [
+            (0.9, [1.0, 2.0, 10.0]),
+            (0.015, [0.02, 0.1, 0.2]),
+            (3.0, [5.0, 10.0, 20.0]),
+        ] {
+            let got = grid_steps(base);
+            for (g, w) in got.iter().zip(want) {
+                assert!((g - w).abs() < 1e-12 * w, "{base}: {got:?} vs {want:?}");
+            }
+        }
+        // Every coarser level lies on the finer one's lines, whatever the plot's scale.
+        for k in -40..40 {
+            let steps = grid_steps(1.37_f64.powi(k));
+            for pair in steps.windows(2) {
+                let ratio = pair[1] / pair[0];
+                assert!((ratio - ratio.round()).abs() < 1e-9, "{steps:?}");
+            }
+        }
         assert_eq!(tick_label(0.04, 0.02), "0.04");
         assert_eq!(tick_label(-0.05, 0.05), "-0.05");
         assert_eq!(tick_label(0.5, 0.5), "0.5");
