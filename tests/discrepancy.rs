@@ -574,10 +574,7 @@ fn dump_one_case() {
             seed,
         },
         1 => case_for(effects[0], seed, noise, hours),
-        _ => two_effect_cases(seed, noise)
-            .into_iter()
-            .find(|c| c.omitted == effects)
-            .unwrap(),
+        _ => two_effect_case(seed, noise, &effects),
     };
     let pair = make_pair(&case);
     for (name, recording) in [
@@ -795,6 +792,14 @@ pub fn two_effect_cases(seed: u64, noise: Noise) -> Vec<Case> {
     ]
 }
 
+/// The grid's pair that conceals `effects` (in the grid's order), for `seed` and `noise`.
+pub fn two_effect_case(seed: u64, noise: Noise, effects: &[Effect]) -> Case {
+    two_effect_cases(seed, noise)
+        .into_iter()
+        .find(|c| c.omitted == effects)
+        .unwrap_or_else(|| panic!("the grid has no pair concealing {effects:?}"))
+}
+
 #[test]
 fn two_concealed_effects_are_both_named() {
     let mut failures = Vec::new();
@@ -816,10 +821,11 @@ fn two_concealed_effects_are_both_named() {
 /// clears surrogates made of both. Both are named, the first as masked by the second.
 #[test]
 fn two_slow_effects_that_mask_each_other_are_both_named_over_a_day() {
-    let mut case = two_effect_cases(1, Noise::Correlated)
-        .into_iter()
-        .find(|c| c.omitted == [Effect::SensorOffsetDrift, Effect::AmbientTemperature])
-        .expect("the drift and room pair is in the grid");
+    let mut case = two_effect_case(
+        1,
+        Noise::Correlated,
+        &[Effect::SensorOffsetDrift, Effect::AmbientTemperature],
+    );
     case.hours = 24.0;
     let (outcome, checks) = verify_case(&case, &Options::default());
     print_outcome(&outcome);
@@ -1567,10 +1573,11 @@ fn corrections_stay_within_their_physics_in_the_joint_fit() {
 /// on and names it.
 #[test]
 fn a_correction_brought_within_its_limits_lets_the_selection_go_on() {
-    let case = two_effect_cases(203, Noise::White)
-        .into_iter()
-        .find(|c| c.omitted == [Effect::AmbientTemperature, Effect::CopperLoss])
-        .expect("the grid's room + copper pair");
+    let case = two_effect_case(
+        203,
+        Noise::White,
+        &[Effect::AmbientTemperature, Effect::CopperLoss],
+    );
     let pair = make_pair(&case);
     let report = analyse(&pair.sim, &pair.real, &case.target, &Options::default()).unwrap();
     let parameters = servosight::discrepancy::parameters_by_physics(&report);
@@ -1727,10 +1734,7 @@ fn an_observer_follows_the_analysis_and_can_stop_it() {
 /// variance) and the rest is flagged as slow.
 #[test]
 fn the_noise_floor_says_how_much_of_it_is_slow() {
-    let mut concealed = two_effect_cases(201, Noise::White)
-        .into_iter()
-        .find(|c| c.omitted == [Effect::CopperLoss, Effect::Coolant])
-        .expect("the copper and coolant pair");
+    let mut concealed = two_effect_case(201, Noise::White, &[Effect::CopperLoss, Effect::Coolant]);
     concealed.hours = 3.0;
     let control = |noise| Case {
         omitted: vec![],

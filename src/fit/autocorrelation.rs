@@ -102,6 +102,8 @@ pub fn white_noise_from_differences(series: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng, rngs::StdRng};
+    use rand_distr::StandardNormal;
 
     /// A seeded AR(1) series x_k = φ x_{k−1} + e_k (uniform innovations scaled to unit variance).
     fn ar1(phi: f64, n: usize, seed: u64) -> Vec<f64> {
@@ -165,23 +167,16 @@ mod tests {
 
     #[test]
     fn the_white_part_of_a_series_is_told_from_its_slow_part_and_its_steps() {
-        // σ = 0.3 Gaussian noise (Box–Muller on a seeded stream) on a slow AR(1) wander larger
-        // than it (correlation time 10 000 samples, so it changes by 0.02 from one sample to
-        // the next), with four steps of 10: the successive differences see the 0.3 alone.
-        let mut state = 11u64;
-        let mut uniform = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
+        // σ = 0.3 Gaussian noise on a slow AR(1) wander larger than it (correlation time
+        // 10 000 samples, so it changes by 0.02 from one sample to the next), with four steps
+        // of 10: the successive differences see the 0.3 alone.
+        let mut rng = StdRng::seed_from_u64(11);
         let slow = ar1(0.9999, 50_000, 9);
         let series: Vec<f64> = slow
             .iter()
             .enumerate()
             .map(|(k, s)| {
-                let gaussian =
-                    (-2.0 * uniform().ln()).sqrt() * (2.0 * std::f64::consts::PI * uniform()).cos();
+                let gaussian: f64 = rng.sample(StandardNormal);
                 let steps = 10.0 * (k / 10_000) as f64;
                 0.02 * s + 0.3 * gaussian + steps
             })
