@@ -837,6 +837,7 @@ struct MemberFit {
 /// temperature the part really has). The next stepwise step then works on the residual of
 /// this joint model, so a first correction that took a share of a second effect gives it back
 /// once the second is in the model.
+#[derive(Clone)]
 struct Joint<'a> {
     families: &'a [Family],
     /// The selection's candidate members (what [`JointModel::accept`] is given).
