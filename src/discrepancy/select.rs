@@ -653,18 +653,43 @@ pub fn stepwise<M: JointModel + Clone>(
                 None => (best, runners, indistinguishable),
             }
         };
-        if !accepted {
-            steps.push(Step {
-                member: best,
-                gain: relative * sse0,
-                sse_before: *sse0,
-                p_value,
-                tail_p,
-                accepted,
-                runners_up: runners,
-                indistinguishable,
-                masked_by: None,
-            });
+        let (member, relative, runners, indistinguishable, refitted) = if accepted {
+            watch.report(at(0.7), || {
+                format!("selection step {}: refitting the corrections", step + 1)
+            })?;
+            let refit =
+                accept_distinguishing(problem, model, best, &indistinguishable, &base, options);
+            let (relative, runners) = if refit.member == best {
+                (relative, runners)
+            } else {
+                (
+                    gains[refit.member].unwrap_or(0.0),
+                    runners_of(problem, gains, refit.member),
+                )
+            };
+            let columns = Some(refit.columns);
+            (
+                refit.member,
+                relative,
+                runners,
+                refit.indistinguishable,
+                columns,
+            )
+        } else {
+            (best, relative, runners, indistinguishable, None)
+        };
+        steps.push(Step {
+            member,
+            gain: relative * sse0,
+            sse_before: *sse0,
+            p_value,
+            tail_p,
+            accepted,
+            runners_up: runners,
+            indistinguishable,
+            masked_by: None,
+        });
+        let Some(columns) = refitted else {
             // Nothing more is significant in this model; if keeping its corrections within
             // their limits changes it, what it explains changes too, and the search goes on.
             match model.settle() {
@@ -675,35 +700,12 @@ pub fn stepwise<M: JointModel + Clone>(
                 }
                 None => break,
             }
-        }
-        watch.report(at(0.7), || {
-            format!("selection step {}: refitting the corrections", step + 1)
-        })?;
+        };
+        chosen_kinds.push(problem.families[problem.members[member].family].kind);
         // The joint refit returns every active correction as it is now: the base is rebuilt
         // from them, not extended, so a refitted correction does not also stay in its old form.
-        let refit = accept_distinguishing(problem, model, best, &indistinguishable, &base, options);
-        let (relative, runners) = if refit.member == best {
-            (relative, runners)
-        } else {
-            (
-                gains[refit.member].unwrap_or(0.0),
-                runners_of(problem, gains, refit.member),
-            )
-        };
-        steps.push(Step {
-            member: refit.member,
-            gain: relative * sse0,
-            sse_before: *sse0,
-            p_value,
-            tail_p,
-            accepted,
-            runners_up: runners,
-            indistinguishable: refit.indistinguishable,
-            masked_by: None,
-        });
-        chosen_kinds.push(problem.families[problem.members[refit.member].family].kind);
         base.truncate(1);
-        base.extend(refit.columns);
+        base.extend(columns);
     }
     // However the selection ended, the model it leaves keeps within its limits.
     model.settle();
