@@ -761,11 +761,12 @@ fn accept_distinguishing<M: JointModel + Clone>(
     }
     let before = model.clone();
     let view = &problem.views[0];
+    let target = ViewTarget::new(problem, view);
     let held_out = |columns: &[Vec<f64>]| {
         let mut all: Vec<Vec<f64>> = vec![view.transform(&base[0])];
         all.extend(columns.iter().map(|c| view.transform(c)));
         let slices: Vec<&[f64]> = all.iter().map(|c| c.as_slice()).collect();
-        held_out_block_sse(problem, view, &slices)
+        target.block_sse(problem, &slices)
     };
     let columns = model.accept(best, base);
     let Some(reference) = held_out(&columns) else {
@@ -1066,16 +1067,35 @@ struct MaskedPair {
     partner: usize,
 }
 
-/// Held-out squared error of every block for a model of `columns` (already in `view`), each
-/// block predicted by its fold's training fit; `None` when a fold cannot be fitted.
-fn held_out_block_sse(problem: &Problem<'_>, view: &View, columns: &[&[f64]]) -> Option<Vec<f64>> {
-    let blocks = problem.blocks;
-    let y = view.transform(problem.y);
-    let yty = blocks.dots(&y, &y);
-    let dots: Vec<Vec<f64>> = columns.iter().map(|c| blocks.dots(c, &y)).collect();
-    let gram = ModelGram::new(columns, blocks);
-    let zty: Vec<&[f64]> = dots.iter().map(|d| d.as_slice()).collect();
-    gram.cv_block_sse(&TargetStats { zty, yty: &yty }, blocks)
+/// The target as one view sees it, with its per-block sums of squares: computed once for the
+/// several models a comparison scores on it.
+struct ViewTarget {
+    y: Vec<f64>,
+    yty: Vec<f64>,
+}
+
+impl ViewTarget {
+    fn new(problem: &Problem<'_>, view: &View) -> ViewTarget {
+        let y = view.transform(problem.y);
+        let yty = problem.blocks.dots(&y, &y);
+        ViewTarget { y, yty }
+    }
+
+    /// Held-out squared error of every block for a model of `columns` (already in the view),
+    /// each block predicted by its fold's training fit; `None` when a fold cannot be fitted.
+    fn block_sse(&self, problem: &Problem<'_>, columns: &[&[f64]]) -> Option<Vec<f64>> {
+        let blocks = problem.blocks;
+        let dots: Vec<Vec<f64>> = columns.iter().map(|c| blocks.dots(c, &self.y)).collect();
+        let gram = ModelGram::new(columns, blocks);
+        let zty: Vec<&[f64]> = dots.iter().map(|d| d.as_slice()).collect();
+        gram.cv_block_sse(
+            &TargetStats {
+                zty,
+                yty: &self.yty,
+            },
+            blocks,
+        )
+    }
 }
 
 /// Whether the held-out errors of `other`, block by block, are significantly worse than
@@ -1104,6 +1124,7 @@ fn indistinguishable_from(
     options: &Options,
 ) -> Vec<usize> {
     let view = view_step.view;
+    let target = ViewTarget::new(problem, view);
     let block_sse = |member: usize| {
         let mut columns: Vec<&[f64]> = view_step.base.iter().map(|c| c.as_slice()).collect();
         columns.extend(
@@ -1112,7 +1133,7 @@ fn indistinguishable_from(
                 .clone()
                 .map(|c| view.column(c)),
         );
-        held_out_block_sse(problem, view, &columns)
+        target.block_sse(problem, &columns)
     };
     let Some(winner) = block_sse(best) else {
         return Vec::new();
