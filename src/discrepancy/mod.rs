@@ -755,6 +755,7 @@ fn analyse_watched(
                     tail_p: s.tail_p,
                     accepted: s.accepted,
                     withdrawn,
+                    after_refit: s.after_refit,
                 })
                 .collect(),
         },

@@ -184,6 +184,10 @@ pub struct StepTrace {
     /// Whether it was withdrawn again when a later correction, refitted jointly with it,
     /// explained what it had taken (backward elimination).
     pub withdrawn: bool,
+    /// Whether it was accepted on what it explains with every correction refitted beside it,
+    /// having not been significant beside them as they stood; its gain and p-values are then
+    /// the refitted model's.
+    pub after_refit: bool,
 }
 
 /// The whole analysis.
