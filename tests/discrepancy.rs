@@ -816,19 +816,26 @@ fn two_concealed_effects_are_both_named() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// Two effects concealed at once over a day (the grid's pairs run 5 h), analysed with the
+/// default options and checked against the truth.
+fn verify_pair_over_a_day(seed: u64, noise: Noise, effects: &[Effect]) -> (Case, Outcome, Checks) {
+    let mut case = two_effect_case(seed, noise, effects);
+    case.hours = 24.0;
+    let (outcome, checks) = verify_case(&case, &Options::default());
+    print_outcome(&outcome);
+    (case, outcome, checks)
+}
+
 /// A sensor drifting 0.4 K/h and the room's daily swing on the nut temperature over a day: a
 /// 9.6 K ramp and a 4 K wave, each of which alone leaves the other's large error, so neither
 /// clears surrogates made of both. Both are named, the first as masked by the second.
 #[test]
 fn two_slow_effects_that_mask_each_other_are_both_named_over_a_day() {
-    let mut case = two_effect_case(
+    let (case, outcome, checks) = verify_pair_over_a_day(
         1,
         Noise::Correlated,
         &[Effect::SensorOffsetDrift, Effect::AmbientTemperature],
     );
-    case.hours = 24.0;
-    let (outcome, checks) = verify_case(&case, &Options::default());
-    print_outcome(&outcome);
     let problems = checks.problems(&case, 2.0, true);
     assert!(problems.is_empty(), "{}", problems.join("; "));
     let masked: Vec<(&str, Option<&str>)> = outcome
@@ -1670,14 +1677,11 @@ fn a_correction_of_fixed_shape_is_not_displaced_by_a_refitted_rival() {
 /// nearly all of what copper alone left, and both are named with parameters near the truth.
 #[test]
 fn a_second_effect_is_judged_with_the_first_refitted_beside_it() {
-    let mut case = two_effect_case(
+    let (case, outcome, checks) = verify_pair_over_a_day(
         202,
         Noise::White,
         &[Effect::AmbientTemperature, Effect::CopperLoss],
     );
-    case.hours = 24.0;
-    let (outcome, checks) = verify_case(&case, &Options::default());
-    print_outcome(&outcome);
     let problems = checks.problems(&case, 2.5, true);
     assert!(problems.is_empty(), "{}", problems.join("; "));
     let room = outcome
@@ -1697,14 +1701,11 @@ fn a_second_effect_is_judged_with_the_first_refitted_beside_it() {
 /// was named beside them although the simulation had it right.
 #[test]
 fn a_heat_path_built_on_the_targets_state_is_not_accepted_on_its_refit_alone() {
-    let mut case = two_effect_case(
+    let (_, outcome, checks) = verify_pair_over_a_day(
         203,
         Noise::White,
         &[Effect::Coolant, Effect::AmbientTemperature],
     );
-    case.hours = 24.0;
-    let (outcome, checks) = verify_case(&case, &Options::default());
-    print_outcome(&outcome);
     let mut named = outcome.named.clone();
     named.sort();
     assert_eq!(named, ["ambient_temperature", "coolant"], "{checks:?}");
