@@ -1692,6 +1692,19 @@ fn a_second_effect_is_judged_with_the_first_refitted_beside_it() {
         .find(|s| s.physics == "ambient_temperature")
         .expect("the room is a step");
     assert!(room.accepted && room.after_refit, "{room:?}");
+    let finding = outcome
+        .report
+        .findings
+        .iter()
+        .find(|f| f.physics == "ambient_temperature")
+        .expect("the room is named");
+    assert!(finding.judged_after_refit);
+    assert!(
+        outcome
+            .report
+            .summary()
+            .contains(servosight::discrepancy::JUDGED_AFTER_REFIT)
+    );
 }
 
 /// Coolant and the room concealed on the front bearing over a day (seed 203): both are named,

@@ -47,8 +47,8 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 pub use library::Physics;
 pub use localise::Region;
 pub use report::{
-    Alignment, Alternative, Calibration, DiscrepancyReport, Finding, FitQuality, Method,
-    NoiseFloor, NotTested, PlotData, StepTrace, Verdict,
+    Alignment, Alternative, Calibration, DiscrepancyReport, Finding, FitQuality,
+    JUDGED_AFTER_REFIT, Method, NoiseFloor, NotTested, PlotData, StepTrace, Verdict,
 };
 
 use crate::fit::autocorrelation::white_noise_from_differences;
@@ -602,6 +602,7 @@ fn analyse_watched(
                         .map(|&m| name_of(m))
                         .collect(),
                     masked_by: s.step.masked_by.map(name_of),
+                    judged_after_refit: s.step.after_refit,
                     alternatives: s
                         .step
                         .runners_up

@@ -27,6 +27,10 @@ pub struct FitQuality {
     pub rmse: f64,
 }
 
+/// What the report says of a finding accepted after the refit
+/// ([`Finding::judged_after_refit`]), in the text summary and the Model lab alike.
+pub const JUDGED_AFTER_REFIT: &str = "found with the corrections before it refitted beside it: as they stood, it did not clear the surrogates";
+
 /// A missing physics found, with its fitted correction.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Finding {
@@ -49,6 +53,9 @@ pub struct Finding {
     /// most of the held-out error the other leaves), so `p_value`, this correction's test
     /// alone, is not the evidence.
     pub masked_by: Option<String>,
+    /// Accepted only once the corrections found before it were refitted beside it (as they
+    /// stood, it did not clear the surrogates): `p_value` is that of the refitted gain.
+    pub judged_after_refit: bool,
     /// The next best other physics at this step, with their gains relative to this one's.
     pub alternatives: Vec<Alternative>,
 }
@@ -296,6 +303,9 @@ impl DiscrepancyReport {
                     s,
                     "     admitted together with {partner}: each explains most of the held-out error the other leaves, so the p-value of its test alone is not the evidence"
                 );
+            }
+            if f.judged_after_refit {
+                let _ = writeln!(s, "     {JUDGED_AFTER_REFIT}");
             }
             if !f.indistinguishable_from.is_empty() {
                 let _ = writeln!(

@@ -60,6 +60,9 @@ pub struct FindingView {
     /// "admitted together with …", when it was found as one of two effects that mask each
     /// other.
     pub masked_by: Option<String>,
+    /// "found with the corrections before it refitted beside it …", when it was accepted
+    /// only after that refit.
+    pub judged_after_refit: Option<String>,
 }
 
 /// R² and RMSE of one stage.
@@ -246,6 +249,9 @@ pub fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> Discrepan
                         "admitted together with {partner}: each explains most of the held-out error the other leaves"
                     )
                 }),
+                judged_after_refit: f
+                    .judged_after_refit
+                    .then(|| crate::discrepancy::JUDGED_AFTER_REFIT.to_string()),
             })
             .collect(),
         notes,
