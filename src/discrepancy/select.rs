@@ -87,7 +87,8 @@ pub struct Step {
     /// member, which the next step tests.
     pub masked_by: Option<usize>,
     /// Accepted on what it explains once every correction is refitted with it (see
-    /// [`accepted_after_refit`]): `gain`, `p_value` and `tail_p` are the refitted model's.
+    /// [`accepted_after_refit`]): `gain`, `p_value`, `tail_p` and the runners-up's gains are
+    /// those of the refitted models.
     pub after_refit: bool,
 }
 
@@ -627,7 +628,6 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
                     columns,
                     block_sse,
                 } = rescue.trial;
-                let runners = raw_gains.map_or_else(Vec::new, |g| runners_of(problem, g, member));
                 steps.push(Step {
                     member,
                     gain: rescue.before - block_sse.iter().sum::<f64>(),
@@ -635,7 +635,7 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
                     p_value: rescue.p_value,
                     tail_p: rescue.tail_p,
                     accepted: true,
-                    runners_up: runners,
+                    runners_up: rescue.runners_up,
                     indistinguishable: Vec::new(),
                     masked_by: None,
                     after_refit: true,
@@ -898,6 +898,9 @@ struct Rescue<M> {
     p_value: f64,
     /// …and its upper-tail probability under the surrogates' Gumbel law.
     tail_p: f64,
+    /// Every other kind's best member with its gain refitted the same way (a share of
+    /// `before`), strongest first.
+    runners_up: Vec<(usize, f64)>,
 }
 
 /// Asks a refused step again with the corrections refitted. The step compared the winner
@@ -973,16 +976,28 @@ fn accepted_after_refit<M: JointModel + Clone + Send + Sync>(
         .into_iter()
         .map(|(m, _)| m)
         .collect();
-    let told_apart = parallel_map(&rivals, |&rival| {
-        refitted(rival).is_none_or(|trial| {
-            significantly_worse(&trial.block_sse, &winner.block_sse, options.distinguish_t)
-        })
+    let refitted_rivals: Vec<Option<Vec<f64>>> = parallel_map(&rivals, |&rival| {
+        refitted(rival).map(|trial| trial.block_sse)
     });
-    told_apart.iter().all(|&t| t).then_some(Rescue {
+    let told_apart = refitted_rivals.iter().all(|sse| {
+        sse.as_ref()
+            .is_none_or(|sse| significantly_worse(sse, &winner.block_sse, options.distinguish_t))
+    });
+    if !told_apart {
+        return None;
+    }
+    let mut runners_up: Vec<(usize, f64)> = rivals
+        .iter()
+        .zip(&refitted_rivals)
+        .filter_map(|(&m, sse)| Some((m, (before - sse.as_ref()?.iter().sum::<f64>()) / before)))
+        .collect();
+    runners_up.sort_by(|a, b| b.1.total_cmp(&a.1));
+    Some(Rescue {
         trial: winner,
         before,
         p_value,
         tail_p,
+        runners_up,
     })
 }
 
