@@ -515,14 +515,8 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
                 .and_then(|(_, g)| g[member])
                 .unwrap_or(0.0);
             let p_value = min_p_value(&null, view, gain);
-            let tail_p = Gumbel::fit(
-                &null
-                    .iter()
-                    .map(|row| row[view])
-                    .filter(|g| g.is_finite())
-                    .collect::<Vec<_>>(),
-            )
-            .map_or(p_value, |tail| (tail.survival(gain) * looks).min(1.0));
+            let tail_p = tail_probability(null.as_slice(), view, gain)
+                .map_or(p_value, |tail| (tail * looks).min(1.0));
             let clear = tail_p <= options.tail_alpha || gain >= options.dominant_gain;
             (p_value, tail_p, clear)
         };
@@ -816,17 +810,7 @@ fn accept_distinguishing<M: JointModel + Clone>(
     };
     let trials: Vec<Trial<M>> = rivals
         .iter()
-        .filter_map(|&member| {
-            let mut model = before.clone();
-            let columns = model.accept(member, base);
-            let block_sse = held_out(&columns)?;
-            Some(Trial {
-                member,
-                model,
-                columns,
-                block_sse,
-            })
-        })
+        .filter_map(|&member| Trial::of(problem, &target, &before, member, base, false))
         .collect();
     let total = |sse: &[f64]| sse.iter().sum::<f64>();
     let better = trials
@@ -866,6 +850,32 @@ struct Trial<M> {
     columns: Vec<Vec<f64>>,
     /// Held-out squared error of every block, after the refit.
     block_sse: Vec<f64>,
+}
+
+impl<M: JointModel + Clone> Trial<M> {
+    /// Accepts `member` into a copy of `model` on top of `base` — then, with `settle`, brings
+    /// it within its limits — and measures its held-out error on `target`.
+    fn of(
+        problem: &Problem<'_>,
+        target: &ViewTarget<'_>,
+        model: &M,
+        member: usize,
+        base: &[Vec<f64>],
+        settle: bool,
+    ) -> Option<Trial<M>> {
+        let mut model = model.clone();
+        let mut columns = model.accept(member, base);
+        if settle && let Some(settled) = model.settle() {
+            columns = settled;
+        }
+        let block_sse = target.model_block_sse(problem, &base[0], &columns)?;
+        Some(Trial {
+            member,
+            model,
+            columns,
+            block_sse,
+        })
+    }
 }
 
 /// A refused step is asked again after the refit ([`accepted_after_refit`]) only when its
@@ -935,18 +945,7 @@ fn accepted_after_refit<M: JointModel + Clone + Send + Sync>(
         return None;
     }
     let target = ViewTarget::new(problem, &problem.views[0]);
-    let refitted = |member: usize| -> Option<Trial<M>> {
-        let mut trial = model.clone();
-        let columns = trial.accept(member, base);
-        let columns = trial.settle().unwrap_or(columns);
-        let block_sse = target.model_block_sse(problem, &base[0], &columns)?;
-        Some(Trial {
-            member,
-            model: trial,
-            columns,
-            block_sse,
-        })
-    };
+    let refitted = |member: usize| Trial::of(problem, &target, model, member, base, true);
     let now = target.model_block_sse(problem, &base[0], &base[1..])?;
     let before: f64 = now.iter().sum();
     let winner = refitted(best)?;
@@ -962,14 +961,7 @@ fn accepted_after_refit<M: JointModel + Clone + Send + Sync>(
     if p_value > options.alpha {
         return None;
     }
-    let tail_p = Gumbel::fit(
-        &null
-            .iter()
-            .map(|row| row[0])
-            .filter(|g| g.is_finite())
-            .collect::<Vec<_>>(),
-    )
-    .map_or(p_value, |tail| tail.survival(gain));
+    let tail_p = tail_probability(null, 0, gain).unwrap_or(p_value);
     let rivals: Vec<usize> = raw_gains
         .map(|g| runners_of(problem, g, best))
         .unwrap_or_default()
@@ -1043,6 +1035,17 @@ fn surrogate_null(
 
 /// Shares each view's surrogates are scored in ([`surrogate_null`]).
 const SURROGATE_SHARES: usize = 4;
+
+/// The upper-tail probability of `gain` under a Gumbel law fitted to the surrogates' best gains
+/// in view `view`; `None` when the law cannot be fitted to them.
+fn tail_probability(null: &[Vec<f64>], view: usize, gain: f64) -> Option<f64> {
+    let maxima: Vec<f64> = null
+        .iter()
+        .map(|row| row[view])
+        .filter(|g| g.is_finite())
+        .collect();
+    Gumbel::fit(&maxima).map(|tail| tail.survival(gain))
+}
 
 /// The share of surrogates whose best gain in view `v` reaches `gain`.
 fn p_in_view(null: &[Vec<f64>], v: usize, gain: f64) -> f64 {
