@@ -41,8 +41,9 @@ pub mod report;
 pub mod select;
 pub mod series;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
 
 pub use library::Physics;
 pub use localise::Region;
@@ -429,6 +430,7 @@ fn analyse_watched(
         min_relative_gain: options.min_relative_gain,
         state: None,
         watch,
+        fixed: FixedMembers::default(),
     };
     let steps = stepwise(
         &Problem {
@@ -795,17 +797,76 @@ fn held_out_quality(columns: &[&[f64]], y: &[f64], blocks: &Blocks, ss_total: f6
     }
 }
 
-/// A member's columns as bin means, standardised (what the selection works on).
-fn binned_standardised(
+/// A member's columns as bin means, standardised (what the selection works on), each with
+/// its scale (`None` for a constant column). Empty when the family could not build them.
+type BinnedMember = Arc<Vec<(Vec<f64>, Option<f64>)>>;
+
+/// Builds a member's [`BinnedMember`].
+fn binned_with_scales(
     family: &Family,
     ctx: &Context,
     theta: &[f64],
     bins: &[std::ops::Range<usize>],
-) -> Vec<Vec<f64>> {
-    build(family, ctx, theta)
-        .iter()
-        .map(|c| select::standardise(&bin_means(c, bins)).0)
-        .collect()
+) -> BinnedMember {
+    Arc::new(
+        build(family, ctx, theta)
+            .iter()
+            .map(|c| select::standardise(&bin_means(c, bins)))
+            .collect(),
+    )
+}
+
+/// Most bin values [`FixedMembers`] keeps (64 MB): a thousand columns of 8,192 bins.
+const FIXED_MEMBERS_BUDGET: usize = 8 << 20;
+
+/// The binned columns of members whose shape does not depend on the target's state, kept once
+/// built. The joint refit chooses every correction again from its whole family in each round,
+/// and a refused step asked again refits the model once per rival kind, so the same members
+/// are built over and over: room and copper heat concealed over 24 h built 3,162 such members,
+/// 1,041 of them distinct. Shared by the copies of a joint model, which all stand on the same
+/// context and bins; the kept columns are the very ones a build would give, so keeping them
+/// changes no figure. Past [`FIXED_MEMBERS_BUDGET`] nothing more is kept.
+#[derive(Clone, Default)]
+struct FixedMembers {
+    kept: Arc<Mutex<KeptMembers>>,
+}
+
+#[derive(Default)]
+struct KeptMembers {
+    /// By (family, the parameters' bits).
+    members: HashMap<(usize, Vec<u64>), BinnedMember>,
+    /// Bin values held.
+    values: usize,
+}
+
+impl FixedMembers {
+    fn key(family: usize, theta: &[f64]) -> (usize, Vec<u64>) {
+        (family, theta.iter().map(|t| t.to_bits()).collect())
+    }
+
+    fn get(&self, family: usize, theta: &[f64]) -> Option<BinnedMember> {
+        let kept = self.kept.lock().ok()?;
+        kept.members.get(&Self::key(family, theta)).cloned()
+    }
+
+    fn keep(&self, family: usize, theta: &[f64], member: &BinnedMember) {
+        // A poisoned lock only means another thread panicked mid-insert; the analysis goes on
+        // building its members without the store.
+        let Ok(mut kept) = self.kept.lock() else {
+            return;
+        };
+        let values: usize = member.iter().map(|(c, _)| c.len()).sum();
+        if kept.values + values > FIXED_MEMBERS_BUDGET {
+            return;
+        }
+        if kept
+            .members
+            .insert(Self::key(family, theta), Arc::clone(member))
+            .is_none()
+        {
+            kept.values += values;
+        }
+    }
 }
 
 /// Rounds of the joint refit after each acceptance (time constants member by member, then the
@@ -864,6 +925,8 @@ struct Joint<'a> {
     /// The analysis's observer: the refit stops early once it says stop (the analysis then
     /// ends with `Cancelled` at the next report, so the unfinished refit is never used).
     watch: &'a Watch<'a>,
+    /// Members of fixed shape already built on `ctx` and `bins`.
+    fixed: FixedMembers,
 }
 
 impl Joint<'_> {
@@ -882,11 +945,32 @@ impl Joint<'_> {
             .enumerate()
             .filter(|(k, _)| Some(*k) != skip && self.active[*k])
             .flat_map(|(_, (family, theta))| {
-                let family = &self.families[*family];
-                let ctx = if family.state { state_ctx } else { self.ctx };
-                binned_standardised(family, ctx, theta, self.bins)
+                let ctx = if self.families[*family].state {
+                    state_ctx
+                } else {
+                    self.ctx
+                };
+                self.binned(*family, ctx, theta)
+                    .iter()
+                    .map(|(c, _)| c.clone())
+                    .collect::<Vec<_>>()
             })
             .collect()
+    }
+
+    /// The member `theta` of `family` built on `ctx`, binned and standardised; members of
+    /// fixed shape on the model's own context are built once ([`FixedMembers`]).
+    fn binned(&self, family: usize, ctx: &Context, theta: &[f64]) -> BinnedMember {
+        let f = &self.families[family];
+        let fixed = !f.state && std::ptr::eq(ctx, self.ctx);
+        if fixed && let Some(kept) = self.fixed.get(family, theta) {
+            return kept;
+        }
+        let member = binned_with_scales(f, ctx, theta, self.bins);
+        if fixed {
+            self.fixed.keep(family, theta, &member);
+        }
+        member
     }
 
     /// Accepts a member refined on top of `base`, refits everything jointly and returns the
@@ -898,7 +982,7 @@ impl Joint<'_> {
         } else {
             self.ctx
         };
-        let theta = refine_member(&self.families[family], theta, base, ctx, self.bins, self.y);
+        let theta = self.refine_member(family, theta, base, ctx);
         self.accepted.push((family, theta));
         self.active.push(true);
         self.refit_jointly();
@@ -940,7 +1024,7 @@ impl Joint<'_> {
                     self.ctx
                 };
                 let chosen = self.reselect(*family, theta, &others, ctx);
-                let refined = refine_member(family_ref, &chosen, &others, ctx, self.bins, self.y);
+                let refined = self.refine_member(*family, &chosen, &others, ctx);
                 self.accepted[k].1 = refined;
             }
             if !stateful {
@@ -1024,19 +1108,13 @@ impl Joint<'_> {
         ctx: &Context,
     ) -> Option<MemberFit> {
         let f = &self.families[family];
-        let columns = build(f, ctx, theta);
+        let columns = self.binned(family, ctx, theta);
         if columns.is_empty() {
             return None;
         }
-        let mut standard = Vec::with_capacity(columns.len());
-        let mut scales = Vec::with_capacity(columns.len());
-        for c in &columns {
-            let (z, scale) = select::standardise(&bin_means(c, self.bins));
-            standard.push(z);
-            scales.push(scale.unwrap_or(0.0));
-        }
+        let scales: Vec<f64> = columns.iter().map(|(_, s)| s.unwrap_or(0.0)).collect();
         let mut design: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
-        design.extend(standard.iter().map(|c| c.as_slice()));
+        design.extend(columns.iter().map(|(c, _)| c.as_slice()));
         let gram = ModelGram::new(&design, self.blocks);
         let zty: Vec<Vec<f64>> = design.iter().map(|c| self.blocks.dots(c, self.y)).collect();
         let yty = self.blocks.dots(self.y, self.y);
@@ -1153,7 +1231,7 @@ impl Joint<'_> {
             .map(|(theta, _)| theta.clone())
             .collect();
         let refined = series::parallel_map(&contenders, |theta| {
-            let theta = refine_member(f, theta, others, ctx, self.bins, self.y);
+            let theta = self.refine_member(family, theta, others, ctx);
             let error = score(&theta);
             (theta, error)
         });
@@ -1249,6 +1327,91 @@ impl Joint<'_> {
             }
         }
     }
+
+    /// Refines a member's first nonlinear parameter (τ on a log scale, a delay on a linear one)
+    /// between its grid neighbours by a golden-section search of the in-sample error on top of
+    /// `base`; the grid value stays when the search finds nothing better.
+    fn refine_member(
+        &self,
+        family: usize,
+        theta: &[f64],
+        base: &[Vec<f64>],
+        ctx: &Context,
+    ) -> Vec<f64> {
+        let index = family;
+        let family = &self.families[index];
+        let Some(refine) = family.refine else {
+            return theta.to_vec();
+        };
+        let current = theta[0];
+        // A nested member (τ = 0: no lag at all) has nothing to refine.
+        if refine.log && current == 0.0 {
+            return theta.to_vec();
+        }
+        // The search runs between the nearest grid values below and above the current one among
+        // members that share the other parameters (the current value may lie between grid points
+        // after an earlier refinement).
+        let values: Vec<f64> = family
+            .grid
+            .iter()
+            .filter(|t| t[1..] == theta[1..] && t[0].signum() == current.signum())
+            .map(|t| t[0])
+            .collect();
+        let lower = values
+            .iter()
+            .copied()
+            .filter(|v| *v < current)
+            .max_by(f64::total_cmp)
+            .unwrap_or(current);
+        let upper = values
+            .iter()
+            .copied()
+            .filter(|v| *v > current)
+            .min_by(f64::total_cmp)
+            .unwrap_or(current);
+        if lower == upper {
+            return theta.to_vec();
+        }
+        let sse_at = |value: f64| -> f64 {
+            let mut candidate = theta.to_vec();
+            candidate[0] = value;
+            let own = self.binned(index, ctx, &candidate);
+            let mut columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
+            columns.extend(own.iter().map(|(c, _)| c.as_slice()));
+            least_squares(&columns, self.y).map_or(f64::INFINITY, |(_, sse)| sse)
+        };
+        // Time constants are searched on a log scale, delays on a linear one.
+        let to = |v: f64| if refine.log { v.abs().ln() } else { v };
+        let from = |u: f64| if refine.log { u.exp() } else { u };
+        let sign = if refine.log { current.signum() } else { 1.0 };
+        let (mut a, mut b) = (to(lower), to(upper));
+        let golden = 0.5 * (5.0_f64.sqrt() - 1.0);
+        let mut c = b - golden * (b - a);
+        let mut d = a + golden * (b - a);
+        let (mut fc, mut fd) = (sse_at(sign * from(c)), sse_at(sign * from(d)));
+        for _ in 0..14 {
+            if fc < fd {
+                b = d;
+                d = c;
+                fd = fc;
+                c = b - golden * (b - a);
+                fc = sse_at(sign * from(c));
+            } else {
+                a = c;
+                c = d;
+                fc = fd;
+                d = a + golden * (b - a);
+                fd = sse_at(sign * from(d));
+            }
+        }
+        let (best, best_sse) = if fc < fd { (c, fc) } else { (d, fd) };
+        let best = sign * from(best);
+        let mut out = theta.to_vec();
+        if best_sse <= sse_at(current) {
+            out[0] = best;
+        }
+        out
+    }
 }
 
 impl JointModel for Joint<'_> {
@@ -1275,89 +1438,6 @@ impl JointModel for Joint<'_> {
         }
         Some(self.columns(&self.state_context(), None))
     }
-}
-
-/// Refines a member's first nonlinear parameter (τ on a log scale, a delay on a linear one)
-/// between its grid neighbours by a golden-section search of the in-sample error on top of
-/// `base`; the grid value stays when the search finds nothing better.
-fn refine_member(
-    family: &Family,
-    theta: &[f64],
-    base: &[Vec<f64>],
-    ctx: &Context,
-    bins: &[std::ops::Range<usize>],
-    y: &[f64],
-) -> Vec<f64> {
-    let Some(refine) = family.refine else {
-        return theta.to_vec();
-    };
-    let current = theta[0];
-    // A nested member (τ = 0: no lag at all) has nothing to refine.
-    if refine.log && current == 0.0 {
-        return theta.to_vec();
-    }
-    // The search runs between the nearest grid values below and above the current one among
-    // members that share the other parameters (the current value may lie between grid points
-    // after an earlier refinement).
-    let values: Vec<f64> = family
-        .grid
-        .iter()
-        .filter(|t| t[1..] == theta[1..] && t[0].signum() == current.signum())
-        .map(|t| t[0])
-        .collect();
-    let lower = values
-        .iter()
-        .copied()
-        .filter(|v| *v < current)
-        .max_by(f64::total_cmp)
-        .unwrap_or(current);
-    let upper = values
-        .iter()
-        .copied()
-        .filter(|v| *v > current)
-        .min_by(f64::total_cmp)
-        .unwrap_or(current);
-    if lower == upper {
-        return theta.to_vec();
-    }
-    let sse_at = |value: f64| -> f64 {
-        let mut candidate = theta.to_vec();
-        candidate[0] = value;
-        let own = binned_standardised(family, ctx, &candidate, bins);
-        let mut columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
-        columns.extend(own.iter().map(|c| c.as_slice()));
-        least_squares(&columns, y).map_or(f64::INFINITY, |(_, sse)| sse)
-    };
-    // Time constants are searched on a log scale, delays on a linear one.
-    let to = |v: f64| if refine.log { v.abs().ln() } else { v };
-    let from = |u: f64| if refine.log { u.exp() } else { u };
-    let sign = if refine.log { current.signum() } else { 1.0 };
-    let (mut a, mut b) = (to(lower), to(upper));
-    let golden = 0.5 * (5.0_f64.sqrt() - 1.0);
-    let mut c = b - golden * (b - a);
-    let mut d = a + golden * (b - a);
-    let (mut fc, mut fd) = (sse_at(sign * from(c)), sse_at(sign * from(d)));
-    for _ in 0..14 {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - golden * (b - a);
-            fc = sse_at(sign * from(c));
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + golden * (b - a);
-            fd = sse_at(sign * from(d));
-        }
-    }
-    let best = sign * from(if fc < fd { c } else { d });
-    let mut out = theta.to_vec();
-    if sse_at(best) <= sse_at(current) {
-        out[0] = best;
-    }
-    out
 }
 
 /// The parameters of a report's findings by physics id (a convenience for tests and the HMI).
