@@ -22,11 +22,21 @@ and asks the command about each of nine targets. An effect's size on a target is
 
 `nothing` cases leave nothing out: every target must be `consistent`.
 
-Usage (after `cargo build --release`, with numpy installed; a few minutes on 2 cores):
+With `--pairs` every pair of the ten effects is left out at once, and each effect of the pair
+is sized by its own case (the effect left out alone, same seed), as the pair sweep scores:
 
-    python3 scripts/independent_cases.py [OUT_DIR] [SEEDS]    (default /tmp/independent 1,2,3)
+- both large: both must be named (in any order);
+- one large, the other absent: the large one must be named and the absent one must not;
+- otherwise: listed, not scored.
+
+Usage (after `cargo build --release`, with numpy installed; a few minutes on 2 cores, about
+ten per seed with `--pairs`):
+
+    python3 scripts/independent_cases.py [--pairs] [OUT_DIR] [SEEDS]
+                                                    (default /tmp/independent 1,2,3)
 """
 import concurrent.futures
+import itertools
 import json
 import math
 import os
@@ -199,16 +209,21 @@ def ar1(rng, n, sigma, tau):
     return y
 
 
+def left_out(case):
+    """The effects a case leaves out: one effect, a pair `a+b`, or none (`nothing`)."""
+    return set(case.split("+")) & set(EFFECTS)
+
+
 def measured(rng, clean, effect, correlated, delay_s, offsets):
     """The real recording: the clean signals through the instruments."""
     out = dict(clean)
     n = len(clean["ambient_C"])
     for name in TARGETS:
         x = clean[name].copy()
-        if effect == "signal_delay":
+        if "signal_delay" in left_out(effect):
             shift = int(round(delay_s / DT))
             x = np.concatenate([np.full(shift, x[0]), x[:-shift]])
-        if effect == "sensor_offset_drift":
+        if "sensor_offset_drift" in left_out(effect):
             offset, drift = offsets[name]
             x = x + offset + drift * clean_hours(n)
         white, corr = NOISE[name]
@@ -250,9 +265,8 @@ def make_case(out, seed, effect):
     real_every = int(rng.choice([1, 2, 2, 4]))  # 2 Hz, 1 Hz or 0.5 Hz
     sim_every = real_every * (int(rng.choice([1, 1, 5])))  # sometimes an FEA-like coarse export
     full = machine(p, set(), inertia)
-    sim = machine(p, {effect} & set(EFFECTS), inertia)
-    noise_rng = np.random.default_rng(seed * 7919 + EFFECTS.index(effect) if effect in EFFECTS
-                                      else seed * 7919 + 99)
+    sim = machine(p, left_out(effect), inertia)
+    noise_rng = np.random.default_rng(noise_seed(seed, effect))
     real = measured(noise_rng, full, effect, correlated, delay_s, offsets)
     columns = OPERATING + TARGETS
     write(os.path.join(d, "real.csv"), real, real_every, columns)
@@ -263,7 +277,7 @@ def make_case(out, seed, effect):
         white, corr = NOISE[t]
         sigma = math.hypot(white, corr) if correlated else white
         sizes[t] = float(np.sqrt(np.mean((effect_signal - effect_signal.mean()) ** 2)) / sigma) \
-            if effect != "sensor_offset_drift" else float(
+            if "sensor_offset_drift" not in left_out(effect) else float(
                 np.sqrt(np.mean(effect_signal ** 2)) / sigma)
     meta = {"hours": hours, "inertia": inertia, "delay_s": delay_s, "correlated": correlated,
             "real_step_s": real_every * DT, "sim_step_s": sim_every * DT}
@@ -271,20 +285,78 @@ def make_case(out, seed, effect):
     return d
 
 
+def noise_seed(seed, effect):
+    """The seed of a case's measurement noise: its own for every effect and every pair."""
+    if effect in EFFECTS:
+        return seed * 7919 + EFFECTS.index(effect)
+    if effect == "nothing":
+        return seed * 7919 + 99
+    a, b = effect.split("+")
+    return seed * 7919 + 100 + 10 * EFFECTS.index(a) + EFFECTS.index(b)
+
+
 def measured_clean(full, name, effect, delay_s, offsets):
     x = full[name]
-    if effect == "signal_delay":
+    if "signal_delay" in left_out(effect):
         shift = int(round(delay_s / DT))
         x = np.concatenate([np.full(shift, x[0]), x[:-shift]])
-    if effect == "sensor_offset_drift":
+    if "sensor_offset_drift" in left_out(effect):
         offset, drift = offsets[name]
         x = x + offset + drift * clean_hours(len(x))
     return x
 
 
+def pairs_main(out, seeds):
+    pairs = ["+".join(p) for p in itertools.combinations(EFFECTS, 2)]
+    with concurrent.futures.ProcessPoolExecutor(2) as pool:
+        # The single cases size each effect of a pair on its own.
+        cases = [(e, s) for e in EFFECTS + pairs for s in seeds]
+        dirs = dict(zip(cases, pool.map(make_case, *zip(*[(out, s, e) for e, s in cases]))))
+    cases = [(p, s, t) for p in pairs for s in seeds for t in TARGETS]
+    with concurrent.futures.ThreadPoolExecutor(2) as pool:
+        results = list(pool.map(lambda c: analyse(dirs[(c[0], c[1])], c[2]), cases))
+    size = {}
+    for e in EFFECTS:
+        for s in seeds:
+            size[(e, s)] = json.load(open(os.path.join(dirs[(e, s)], "sizes.json")))["sizes"]
+    both, one = [0, 0], [0, 0]
+    print("| outcome | concealed | target | seed | sizes / σ | verdict | named |")
+    print("|---|---|---|---|---|---|---|")
+    for (pair, seed, target), (report, error) in zip(cases, results):
+        effects = pair.split("+")
+        sizes = [size[(e, seed)][target] for e in effects]
+        shown = " + ".join(f"{v:.2f}" for v in sizes)
+        if report is None:
+            print(f"| **error** | `{pair}` | `{target}` | {seed} | {shown} | {error} | |")
+            continue
+        named = [f["physics"] for f in report["findings"]]
+        large = [e for e, v in zip(effects, sizes) if v >= LARGE]
+        absent = [e for e, v in zip(effects, sizes) if v < ABSENT]
+        if len(large) == 2:
+            bucket, ok = both, all(e in named for e in effects)
+            outcome = "both named" if ok else "**not both**"
+        elif len(large) == 1 and len(absent) == 1:
+            bucket, ok = one, large[0] in named and absent[0] not in named
+            outcome = "the large one" if ok else "**wrong**"
+        else:
+            bucket, ok, outcome = None, False, "(not scored)"
+        if bucket is not None:
+            bucket[0] += 1
+            bucket[1] += ok
+        print(f"| {outcome} | `{pair}` | `{target}` | {seed} | {shown} | {report['verdict']} | "
+              f"{', '.join(named) or '—'} |")
+    print(f"\nboth large (each ≥ {LARGE} σ alone): {both[1]}/{both[0]} both named")
+    print(f"one large, one absent (< {ABSENT} σ): {one[1]}/{one[0]} the large one named "
+          f"and the absent one not")
+
+
 def main():
-    out = sys.argv[1] if len(sys.argv) > 1 else "/tmp/independent"
-    seeds = [int(s) for s in (sys.argv[2] if len(sys.argv) > 2 else "1,2,3").split(",")]
+    args = [a for a in sys.argv[1:] if a != "--pairs"]
+    out = args[0] if args else "/tmp/independent"
+    seeds = [int(s) for s in (args[1] if len(args) > 1 else "1,2,3").split(",")]
+    if "--pairs" in sys.argv:
+        pairs_main(out, seeds)
+        return
     effects = EFFECTS + ["nothing"]
     with concurrent.futures.ProcessPoolExecutor(2) as pool:
         dirs = dict(zip([(e, s) for e in effects for s in seeds],
