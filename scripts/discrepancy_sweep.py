@@ -215,11 +215,17 @@ def pairs_main(out, seeds):
     print_against_physics(broken, len(cases))
 
 
-def main():
+def command_line(default_out, default_seeds):
+    """`[--pairs] [OUT_DIR] [SEEDS]`: whether pairs are asked for, the directory, the seeds."""
     args = [a for a in sys.argv[1:] if a != "--pairs"]
-    out = args[0] if args else "/tmp/sweep"
-    seeds = [int(s) for s in (args[1] if len(args) > 1 else "301,302").split(",")]
-    if "--pairs" in sys.argv:
+    out = args[0] if args else default_out
+    seeds = [int(s) for s in (args[1] if len(args) > 1 else default_seeds).split(",")]
+    return "--pairs" in sys.argv, out, seeds
+
+
+def main():
+    pairs, out, seeds = command_line("/tmp/sweep", "301,302")
+    if pairs:
         pairs_main(out, seeds)
         return
     cases = [(e, t, s) for e in EFFECTS for t in TARGETS for s in seeds]

@@ -40,12 +40,11 @@ import itertools
 import json
 import math
 import os
-import sys
 
 import numpy as np
 
 # The command is run, and its outcomes sized, as the sweep does (same effects, same thresholds).
-from discrepancy_sweep import ABSENT, EFFECTS, LARGE, analyse
+from discrepancy_sweep import ABSENT, EFFECTS, LARGE, analyse, command_line
 
 TARGETS = ["S.stator_temp_C", "X.stator_temp_C", "S.torque_Nm", "X.torque_Nm", "S.current_A",
            "X.current_A", "ref.S.front_bearing_temp_C", "ref.S.elongation_um",
@@ -351,10 +350,8 @@ def pairs_main(out, seeds):
 
 
 def main():
-    args = [a for a in sys.argv[1:] if a != "--pairs"]
-    out = args[0] if args else "/tmp/independent"
-    seeds = [int(s) for s in (args[1] if len(args) > 1 else "1,2,3").split(",")]
-    if "--pairs" in sys.argv:
+    pairs, out, seeds = command_line("/tmp/independent", "1,2,3")
+    if pairs:
         pairs_main(out, seeds)
         return
     effects = EFFECTS + ["nothing"]

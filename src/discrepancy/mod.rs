@@ -1333,12 +1333,11 @@ impl Joint<'_> {
     /// `base`; the grid value stays when the search finds nothing better.
     fn refine_member(
         &self,
-        family: usize,
+        index: usize,
         theta: &[f64],
         base: &[Vec<f64>],
         ctx: &Context,
     ) -> Vec<f64> {
-        let index = family;
         let family = &self.families[index];
         let Some(refine) = family.refine else {
             return theta.to_vec();
