@@ -660,8 +660,14 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
             let calibration = |m: usize| {
                 problem.families[problem.members[m].family].kind == Kind::CalibrationGain
             };
-            let own_width = if indistinguishable.is_empty()
-                || problem.families[problem.members[best].family].state
+            let simpler_than =
+                |w: usize, m: usize| width(m) < w || (width(m) == w && calibration(m));
+            // The winning kind's narrowest equal member is looked for only where some runner-up
+            // is simpler than the winner as it stands: it can only narrow the choice.
+            let own_width = if problem.families[problem.members[best].family].state
+                || !indistinguishable
+                    .iter()
+                    .any(|&m| simpler_than(width(best), m))
             {
                 width(best)
             } else {
@@ -670,7 +676,7 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
             let simpler = indistinguishable
                 .iter()
                 .copied()
-                .filter(|&m| width(m) < own_width || (width(m) == own_width && calibration(m)))
+                .filter(|&m| simpler_than(own_width, m))
                 .min_by(|&a, &b| {
                     width(a).cmp(&width(b)).then_with(|| {
                         let gain =
