@@ -1760,6 +1760,14 @@ fn an_observer_follows_the_analysis_and_can_stop_it() {
     for pair in heard.windows(2) {
         assert!(pair[0].0 <= pair[1].0, "{:?} then {:?}", pair[0], pair[1]);
     }
+    // The candidates are built on several threads; the counts heard rise all the same.
+    let built: Vec<usize> = heard
+        .iter()
+        .filter_map(|h| h.1.strip_prefix("building candidate corrections ("))
+        .filter_map(|rest| rest.split(' ').next()?.parse().ok())
+        .collect();
+    assert!(built.len() > 5, "{built:?}");
+    assert!(built.is_sorted_by(|a, b| a < b), "{built:?}");
     let stages: Vec<&str> = heard.iter().map(|h| h.1.as_str()).collect();
     for expected in [
         "aligning the recordings",

@@ -42,7 +42,7 @@ pub mod select;
 pub mod series;
 
 use std::collections::{BTreeMap, HashMap};
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 pub use library::Physics;
@@ -116,8 +116,9 @@ pub type Observer<'a> = dyn Fn(f32, &str) -> bool + Sync + 'a;
 pub struct Watch<'a> {
     observer: Option<&'a Observer<'a>>,
     stopped: AtomicBool,
-    /// The last fraction reported (as `f32` bits), for reports that only check.
-    fraction: AtomicU32,
+    /// The highest fraction reported so far. Held while the observer is called, so that
+    /// reports from worker threads reach it one at a time and in rising order.
+    fraction: Mutex<f32>,
 }
 
 impl<'a> Watch<'a> {
@@ -126,7 +127,7 @@ impl<'a> Watch<'a> {
         Watch {
             observer,
             stopped: AtomicBool::new(false),
-            fraction: AtomicU32::new(0.0_f32.to_bits()),
+            fraction: Mutex::new(0.0),
         }
     }
 
@@ -143,11 +144,14 @@ impl<'a> Watch<'a> {
         let Some(observer) = self.observer else {
             return Ok(());
         };
-        // Bits of non-negative floats order like the floats.
-        self.fraction
-            .fetch_max(fraction.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
-        let fraction = f32::from_bits(self.fraction.load(Ordering::Relaxed));
-        if observer(fraction, &stage()) {
+        // An observer that panicked poisons the lock, but the fraction it guards is still sound.
+        let mut highest = self.fraction.lock().unwrap_or_else(|e| e.into_inner());
+        // Another thread may have been told stop while this one waited for the lock.
+        if self.stopped() {
+            return Err(DiscrepancyError::Cancelled);
+        }
+        *highest = highest.max(fraction.clamp(0.0, 1.0));
+        if observer(*highest, &stage()) {
             Ok(())
         } else {
             self.stopped.store(true, Ordering::Relaxed);
@@ -158,8 +162,8 @@ impl<'a> Watch<'a> {
     /// Asks the observer whether to go on without advancing the fraction (for long loops
     /// whose share of the work is not known in advance); true once it has said stop.
     pub fn should_stop(&self, stage: impl FnOnce() -> String) -> bool {
-        let fraction = f32::from_bits(self.fraction.load(Ordering::Relaxed));
-        self.report(fraction, stage).is_err()
+        // Zero never raises the fraction: the report repeats the highest one.
+        self.report(0.0, stage).is_err()
     }
 
     /// True once the observer has said stop (without asking it again).
@@ -373,7 +377,9 @@ fn analyse_watched(
     watch.report(BUILD_AT, || {
         format!("building {} candidate corrections", grid.len())
     })?;
-    let done = std::sync::atomic::AtomicUsize::new(0);
+    // Counted under a lock that is held through the report, so that the counts the observer
+    // hears rise as the fractions do.
+    let done = Mutex::new(0_usize);
     let every = (grid.len() / 25).max(1);
     let built = series::parallel_map(&grid, |&(index, theta)| {
         if watch.stopped() {
@@ -383,8 +389,10 @@ fn analyse_watched(
             .iter()
             .map(|c| bin_means(c, &bins))
             .collect::<Vec<Vec<f64>>>();
-        let done = done.fetch_add(1, Ordering::Relaxed) + 1;
+        let mut done = done.lock().unwrap_or_else(|e| e.into_inner());
+        *done += 1;
         if done.is_multiple_of(every) {
+            let done = *done;
             // A stop shows in `watch` and is returned after the loop.
             let _ = watch.report(
                 BUILD_AT + (SELECT_AT - BUILD_AT) * done as f32 / grid.len() as f32,
@@ -1488,5 +1496,55 @@ mod tests {
                 .is_ok()
         );
         assert!(!unwatched.should_stop(|| unreachable!("not formatted")));
+    }
+
+    /// Reports from several worker threads at once reach the observer in rising order: the
+    /// candidates are built in parallel, and a progress bar that steps back looks broken.
+    #[test]
+    fn reports_from_many_threads_reach_the_observer_in_rising_order() {
+        let heard = Mutex::new(Vec::new());
+        let observer = |fraction: f32, _: &str| {
+            heard.lock().expect("not poisoned").push(fraction);
+            true
+        };
+        let watch = Watch::new(Some(&observer));
+        let threads = 4;
+        let per_thread = 20_000;
+        std::thread::scope(|scope| {
+            for thread in 0..threads {
+                let watch = &watch;
+                scope.spawn(move || {
+                    for i in 0..per_thread {
+                        let step = i * threads + thread;
+                        let fraction = step as f32 / (threads * per_thread) as f32;
+                        assert!(watch.report(fraction, String::new).is_ok());
+                    }
+                });
+            }
+        });
+        let heard = heard.into_inner().expect("not poisoned");
+        assert_eq!(heard.len(), threads * per_thread);
+        let falls = heard.windows(2).filter(|w| w[1] < w[0]).count();
+        assert_eq!(falls, 0, "the fraction fell {falls} times");
+
+        // Once one thread's report is told stop, no other thread asks again.
+        let asked = Mutex::new((0_usize, false));
+        let stop_once_asked_enough = |_: f32, _: &str| {
+            let mut asked = asked.lock().expect("not poisoned");
+            assert!(!asked.1, "asked again after being told stop");
+            asked.0 += 1;
+            asked.1 = asked.0 == 100;
+            // Long enough for the other threads to be waiting to report.
+            std::thread::sleep(std::time::Duration::from_micros(200));
+            !asked.1
+        };
+        let watch = Watch::new(Some(&stop_once_asked_enough));
+        std::thread::scope(|scope| {
+            for _ in 0..threads {
+                let watch = &watch;
+                scope.spawn(move || while watch.report(0.5, String::new).is_ok() {});
+            }
+        });
+        assert_eq!(asked.into_inner().expect("not poisoned"), (100, true));
     }
 }
