@@ -280,18 +280,8 @@ fn servo_lag_samples(command: &[f64], position: &[f64]) -> f64 {
         .map(|k| k as f64)
         .min_by(|a, b| sse(*a).total_cmp(&sse(*b)))
         .unwrap_or(0.0);
-    // Golden-section search: the squared error is smooth and single-minimum within a sample.
-    let ratio = (5.0_f64.sqrt() - 1.0) / 2.0;
-    let (mut low, mut high) = ((whole - 1.0).max(0.0), whole + 1.0);
-    while high - low > 1e-3 {
-        let (a, b) = (high - ratio * (high - low), low + ratio * (high - low));
-        if sse(a) < sse(b) {
-            high = b;
-        } else {
-            low = a;
-        }
-    }
-    0.5 * (low + high)
+    // The squared error is smooth and single-minimum within a sample of the best whole lag.
+    crate::fit::minimise::minimise_on_interval(sse, (whole - 1.0).max(0.0), whole + 1.0, 5e-4).at
 }
 
 /// `trajectory` delayed by `lag` samples at sample `i`, linearly interpolated (held at its

@@ -31,6 +31,7 @@ pub mod autocorrelation;
 pub mod design;
 pub mod distributions;
 pub mod error;
+pub mod minimise;
 pub mod ols;
 pub mod report;
 pub mod rls;
