@@ -3,10 +3,10 @@
 //! The analyses here refine one nonlinear parameter at a time — a time constant, a delay, a
 //! servo lag — where every evaluation of the error is costly (a correction rebuilt over a whole
 //! recording). Brent's method fits a parabola through its last three points where the error is
-//! smooth and falls back on golden-section steps where it is not, so it reaches the tolerance
-//! of a golden-section search in about half the evaluations on a smooth minimum and is never
-//! much slower on a rough one (R. P. Brent, *Algorithms for Minimization without Derivatives*,
-//! 1973, ch. 5).
+//! smooth and falls back on golden-section steps where it is not, so it reaches a tolerance in
+//! far fewer evaluations than a golden-section search on a smooth minimum (a parabola on
+//! [−3, 5] to 10⁻⁴ in at most 8, against 25) and still converges on a rough one (R. P. Brent,
+//! *Algorithms for Minimization without Derivatives*, 1973, ch. 5).
 
 /// Where a search ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -131,8 +131,8 @@ mod tests {
     use proptest::prelude::*;
 
     /// A parabola's minimum is found to the tolerance, in a handful of evaluations (its
-    /// parabolic steps are exact): far fewer than the 20 a golden-section search needs to
-    /// narrow [−3, 5] to 10⁻³.
+    /// parabolic steps are exact): far fewer than the 25 a golden-section search needs to
+    /// narrow [−3, 5] to 10⁻⁴.
     #[test]
     fn a_parabola_is_solved_in_a_few_evaluations() {
         let found = minimise_on_interval(|x| (x - 1.234).powi(2) + 7.0, -3.0, 5.0, 1e-4);
