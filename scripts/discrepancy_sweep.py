@@ -25,6 +25,9 @@ Usage (after `cargo build --release`; about 3 minutes on 2 cores, 12 with `--pai
 the single sweep's simulations first if they are missing):
 
     python3 scripts/discrepancy_sweep.py [--pairs] [OUT_DIR] [SEEDS]   (default /tmp/sweep 301,302)
+
+SERVOSIGHT_BINARY=PATH runs another build of the command (e.g. a copy of the previous one)
+on the same recordings; scripts/independent_cases.py takes it too.
 """
 import concurrent.futures
 import csv
@@ -37,7 +40,10 @@ import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BINARY = os.path.join(ROOT, "target", "release", "servosight")
+# SERVOSIGHT_BINARY runs another build (e.g. a copy of the previous one, to compare on the same
+# recordings while the tree is rebuilt).
+BINARY = os.environ.get("SERVOSIGHT_BINARY",
+                        os.path.join(ROOT, "target", "release", "servosight"))
 EFFECTS = ["ambient_temperature", "thermal_inertia", "speed_dependent_cooling",
            "lubricant_viscosity", "copper_loss", "coolant", "coulomb_reversal",
            "position_dependent", "signal_delay", "sensor_offset_drift"]
