@@ -152,6 +152,85 @@ pub fn least_squares(columns: &[&[f64]], y: &[f64]) -> Option<(Vec<f64>, f64)> {
     Some((beta, sse))
 }
 
+/// The normal equations of fixed leading columns, kept so that many least-squares fits that
+/// add a few columns to them compute only the new columns' products: refining a correction's
+/// time constant fits every trial value beside the same other corrections.
+pub struct NormalEquations<'a> {
+    columns: Vec<&'a [f64]>,
+    y: &'a [f64],
+    /// ZᵀZ of the kept columns, row-major.
+    gram: Vec<f64>,
+    /// Zᵀy of the kept columns.
+    cross: Vec<f64>,
+    yty: f64,
+}
+
+impl<'a> NormalEquations<'a> {
+    /// The normal equations of `y` on `columns` (include a column of ones for an intercept).
+    pub fn new(columns: &[&'a [f64]], y: &'a [f64]) -> NormalEquations<'a> {
+        let k = columns.len();
+        let mut gram = vec![0.0; k * k];
+        for i in 0..k {
+            for j in 0..=i {
+                let d = super::series::dot(columns[i], columns[j]);
+                gram[i * k + j] = d;
+                gram[j * k + i] = d;
+            }
+        }
+        NormalEquations {
+            cross: columns.iter().map(|c| super::series::dot(c, y)).collect(),
+            columns: columns.to_vec(),
+            y,
+            gram,
+            yty: super::series::dot(y, y),
+        }
+    }
+
+    /// Ordinary least squares of `y` on the kept columns followed by `extra`: the coefficients
+    /// and the residual sum of squares (yᵀy − 2βᵀZᵀy + βᵀZᵀZβ, which needs no pass over the
+    /// residuals), `None` when degenerate. Columns should be of similar scale (standardised).
+    pub fn fit_with(&self, extra: &[&[f64]]) -> Option<(Vec<f64>, f64)> {
+        let k = self.columns.len();
+        let p = k + extra.len();
+        let mut g = vec![0.0; p * p];
+        for i in 0..k {
+            g[i * p..i * p + k].copy_from_slice(&self.gram[i * k..(i + 1) * k]);
+        }
+        let mut h = self.cross.clone();
+        for (e, column) in extra.iter().enumerate() {
+            let i = k + e;
+            for j in 0..=i {
+                let other = if j < k { self.columns[j] } else { extra[j - k] };
+                let d = super::series::dot(column, other);
+                g[i * p + j] = d;
+                g[j * p + i] = d;
+            }
+            h.push(super::series::dot(column, self.y));
+        }
+        let l = cholesky(&g, p)?;
+        let beta = cholesky_solve(&l, p, &h);
+        let cross: f64 = beta.iter().zip(&h).map(|(b, h)| b * h).sum();
+        let sse = self.yty - 2.0 * cross + quadratic(&g, p, &beta);
+        Some((beta, sse.max(0.0)))
+    }
+}
+
+/// Per-block products of `columns[i]` with every earlier column and itself, for the rows
+/// `i >= from` (the products among the first `from` columns are kept as they are), written
+/// into both halves of each block's p×p matrix.
+fn fill_products(per_block: &mut [Vec<f64>], columns: &[&[f64]], from: usize, blocks: &Blocks) {
+    let p = columns.len();
+    for i in from..p {
+        for j in 0..=i {
+            let dots = blocks.dots(columns[i], columns[j]);
+            for (block, d) in per_block.iter_mut().zip(dots) {
+                block[i * p + j] = d;
+                block[j * p + i] = d;
+            }
+        }
+    }
+}
+
 fn quadratic(g: &[f64], p: usize, beta: &[f64]) -> f64 {
     let mut total = 0.0;
     for i in 0..p {
@@ -189,17 +268,38 @@ impl ModelGram {
     /// Builds the statistics of the model whose columns are `columns`.
     pub fn new(columns: &[&[f64]], blocks: &Blocks) -> ModelGram {
         let p = columns.len();
-        let nb = blocks.len();
-        let mut per_block = vec![vec![0.0; p * p]; nb];
-        for i in 0..p {
-            for j in 0..=i {
-                let dots = blocks.dots(columns[i], columns[j]);
-                for (b, d) in dots.into_iter().enumerate() {
-                    per_block[b][i * p + j] = d;
-                    per_block[b][j * p + i] = d;
+        let mut per_block = vec![vec![0.0; p * p]; blocks.len()];
+        fill_products(&mut per_block, columns, 0, blocks);
+        Self::from_per_block(p, per_block, blocks)
+    }
+
+    /// The statistics of this model (whose columns are `columns`) with `extra` columns added
+    /// after its own. Only the new columns' products are computed: fitting many candidates
+    /// beside the same corrections costs each candidate its own columns, not the whole model's
+    /// again. The same figures as [`ModelGram::new`] on all the columns, to the bit.
+    pub fn extended(&self, columns: &[&[f64]], extra: &[&[f64]], blocks: &Blocks) -> ModelGram {
+        debug_assert_eq!(columns.len(), self.p, "the model's own columns");
+        let k = self.p;
+        let p = k + extra.len();
+        let mut per_block: Vec<Vec<f64>> = self
+            .per_block
+            .iter()
+            .map(|own| {
+                let mut g = vec![0.0; p * p];
+                for i in 0..k {
+                    g[i * p..i * p + k].copy_from_slice(&own[i * k..(i + 1) * k]);
                 }
-            }
-        }
+                g
+            })
+            .collect();
+        let all: Vec<&[f64]> = columns.iter().chain(extra).copied().collect();
+        fill_products(&mut per_block, &all, k, blocks);
+        Self::from_per_block(p, per_block, blocks)
+    }
+
+    /// Factors the training and held-out statistics of every fold from per-block products.
+    fn from_per_block(p: usize, per_block: Vec<Vec<f64>>, blocks: &Blocks) -> ModelGram {
+        let nb = blocks.len();
         let sum_blocks = |range: Range<usize>| {
             let mut g = vec![0.0; p * p];
             for block in &per_block[range] {
@@ -325,6 +425,66 @@ impl ModelGram {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A model extended by more columns has the statistics of the whole model built at once.
+    #[test]
+    fn an_extended_model_is_the_whole_model_to_the_bit() {
+        let n = 300;
+        let column = |k: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| ((i * (7 + 2 * k)) % (11 + k)) as f64 - 0.3 * k as f64)
+                .collect()
+        };
+        let ones = vec![1.0; n];
+        let (a, b, c) = (column(1), column(2), column(3));
+        let y: Vec<f64> = (0..n)
+            .map(|i| 0.5 * a[i] - 0.2 * c[i] + (i % 5) as f64)
+            .collect();
+        let blocks = Blocks::new(n, 4, 3);
+        let base = ModelGram::new(&[&ones, &a], &blocks);
+        let extended = base.extended(&[&ones, &a], &[&b, &c], &blocks);
+        let whole = ModelGram::new(&[&ones, &a, &b, &c], &blocks);
+        assert_eq!(extended.per_block, whole.per_block);
+        let zty: Vec<Vec<f64>> = [&ones, &a, &b, &c]
+            .iter()
+            .map(|col| blocks.dots(col, &y))
+            .collect();
+        let yty = blocks.dots(&y, &y);
+        let stats = TargetStats {
+            zty: zty.iter().map(|v| v.as_slice()).collect(),
+            yty: &yty,
+        };
+        assert_eq!(
+            extended.cv_sse(&stats, &blocks),
+            whole.cv_sse(&stats, &blocks)
+        );
+    }
+
+    /// Fits that add columns to kept normal equations agree with a fit of all the columns,
+    /// and their residual sum of squares with the residuals' own.
+    #[test]
+    fn kept_normal_equations_fit_as_the_whole_least_squares() {
+        let n = 200;
+        let ones = vec![1.0; n];
+        let a: Vec<f64> = (0..n).map(|i| (i as f64 * 0.07).sin()).collect();
+        let b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.013).cos()).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|i| 2.0 + 0.8 * a[i] - 1.3 * b[i] + 0.1 * ((i * 31 % 13) as f64 - 6.0))
+            .collect();
+        let kept = NormalEquations::new(&[&ones, &a], &y);
+        let (beta, sse) = kept.fit_with(&[&b]).unwrap();
+        let (whole_beta, whole_sse) = least_squares(&[&ones, &a, &b], &y).unwrap();
+        for (x, w) in beta.iter().zip(&whole_beta) {
+            assert!((x - w).abs() < 1e-10, "{beta:?} vs {whole_beta:?}");
+        }
+        assert!(
+            (sse - whole_sse).abs() < 1e-9 * whole_sse,
+            "{sse} vs {whole_sse}"
+        );
+        let (_, alone) = kept.fit_with(&[]).unwrap();
+        let (_, whole_alone) = least_squares(&[&ones, &a], &y).unwrap();
+        assert!((alone - whole_alone).abs() < 1e-9 * whole_alone);
+    }
 
     /// The sufficient-statistics CV equals refitting each fold explicitly.
     #[test]

@@ -307,6 +307,7 @@ impl<'v> ViewStep<'v> {
     ) -> ViewStep<'v> {
         let blocks = problem.blocks;
         let base_columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
+        let base_gram = ModelGram::new(&base_columns, blocks);
         let grams = problem
             .members
             .iter()
@@ -316,14 +317,13 @@ impl<'v> ViewStep<'v> {
                 if !competes(kind) || !usable || member.columns.is_empty() {
                     return None;
                 }
-                let mut columns = base_columns.clone();
-                columns.extend(member.columns.clone().map(|c| view.column(c)));
-                Some(ModelGram::new(&columns, blocks))
+                let own: Vec<&[f64]> = member.columns.clone().map(|c| view.column(c)).collect();
+                Some(base_gram.extended(&base_columns, &own, blocks))
             })
             .collect();
         ViewStep {
             view,
-            base_gram: ModelGram::new(&base_columns, blocks),
+            base_gram,
             base,
             grams,
         }
