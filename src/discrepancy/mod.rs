@@ -54,7 +54,7 @@ pub use report::{
 
 use crate::fit::autocorrelation::white_noise_from_differences;
 use align::Aligned;
-use cv::{Blocks, ModelGram, TargetStats, least_squares};
+use cv::{Blocks, ModelGram, NormalEquations, TargetStats, least_squares};
 use library::{Context, Family, Kind, families};
 use select::{JointModel, Member, Problem, Step, Store, stepwise};
 use series::{bin_means, bin_ranges, integrated_autocorrelation, mean};
@@ -898,6 +898,37 @@ const STATE_ITERATIONS: usize = 12;
 /// before withdrawing it ([`Joint::keep_within_limits`]).
 const LIMIT_ROUNDS: usize = 2;
 
+/// The columns a member is fitted beside in the joint model (the intercept first, then the
+/// other corrections), with their block statistics computed once: choosing a correction's
+/// member again fits every member of its family beside the same others.
+struct Beside<'c> {
+    columns: Vec<&'c [f64]>,
+    gram: ModelGram,
+    /// Zᵀy per block of each column.
+    zty: Vec<Vec<f64>>,
+    /// yᵀy per block.
+    yty: Vec<f64>,
+}
+
+impl<'c> Beside<'c> {
+    fn new(others: &'c [Vec<f64>], blocks: &Blocks, y: &[f64]) -> Beside<'c> {
+        let columns: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
+        Beside {
+            gram: ModelGram::new(&columns, blocks),
+            zty: columns.iter().map(|c| blocks.dots(c, y)).collect(),
+            yty: blocks.dots(y, y),
+            columns,
+        }
+    }
+}
+
+/// The member [`Joint::reselect`] chose.
+struct Reselected {
+    theta: Vec<f64>,
+    /// Whether its parameter was refined beside the corrections it was chosen beside.
+    refined: bool,
+}
+
 /// A member's fit in the joint model.
 struct MemberFit {
     /// Held-out sum of squared errors over the selection's blocks.
@@ -1039,8 +1070,12 @@ impl Joint<'_> {
                     self.ctx
                 };
                 let chosen = self.reselect(*family, theta, &others, ctx);
-                let refined = self.refine_member(*family, &chosen, &others, ctx);
-                self.accepted[k].1 = refined;
+                // A contender refined beside these very corrections is not refined again.
+                self.accepted[k].1 = if chosen.refined {
+                    chosen.theta
+                } else {
+                    self.refine_member(*family, &chosen.theta, &others, ctx)
+                };
             }
             if !stateful {
                 break;
@@ -1112,14 +1147,14 @@ impl Joint<'_> {
         }
     }
 
-    /// How the member `theta` of `family` fits with `others` (the intercept first) in the
+    /// How the member `theta` of `family` fits beside `others` (the intercept first) in the
     /// model: its held-out error, and whether its coefficients lie within the family's gain
     /// limits. `None` when its columns cannot be built or the model cannot be fitted.
     fn member_fit(
         &self,
         family: usize,
         theta: &[f64],
-        others: &[Vec<f64>],
+        others: &Beside<'_>,
         ctx: &Context,
     ) -> Option<MemberFit> {
         let f = &self.families[family];
@@ -1128,18 +1163,22 @@ impl Joint<'_> {
             return None;
         }
         let scales: Vec<f64> = columns.iter().map(|(_, s)| s.unwrap_or(0.0)).collect();
-        let mut design: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
-        design.extend(columns.iter().map(|(c, _)| c.as_slice()));
-        let gram = ModelGram::new(&design, self.blocks);
-        let zty: Vec<Vec<f64>> = design.iter().map(|c| self.blocks.dots(c, self.y)).collect();
-        let yty = self.blocks.dots(self.y, self.y);
+        let own: Vec<&[f64]> = columns.iter().map(|(c, _)| c.as_slice()).collect();
+        let gram = others.gram.extended(&others.columns, &own, self.blocks);
+        let own_zty: Vec<Vec<f64>> = own.iter().map(|c| self.blocks.dots(c, self.y)).collect();
         let stats = TargetStats {
-            zty: zty.iter().map(|v| v.as_slice()).collect(),
-            yty: &yty,
+            zty: others
+                .zty
+                .iter()
+                .chain(&own_zty)
+                .map(|v| v.as_slice())
+                .collect(),
+            yty: &others.yty,
         };
         let within_limits = f.limits.is_empty() || {
             let beta = gram.full_fit(&stats, self.blocks)?;
-            let raw = |k: usize| (scales[k] > 0.0).then(|| beta[others.len() + k] / scales[k]);
+            let first = others.columns.len();
+            let raw = |k: usize| (scales[k] > 0.0).then(|| beta[first + k] / scales[k]);
             f.within_limits(theta, columns.len(), raw)
         };
         Some(MemberFit {
@@ -1170,7 +1209,7 @@ impl Joint<'_> {
                 } else {
                     self.ctx
                 };
-                self.accepted[k].1 = self.reselect(family, &theta, &others, ctx);
+                self.accepted[k].1 = self.reselect(family, &theta, &others, ctx).theta;
             }
             if stateful {
                 self.settle_state();
@@ -1197,6 +1236,7 @@ impl Joint<'_> {
                 } else {
                     self.ctx
                 };
+                let others = Beside::new(&others, self.blocks, self.y);
                 self.member_fit(*family, theta, &others, ctx)
                     .is_some_and(|fit| !fit.within_limits)
             })
@@ -1220,12 +1260,13 @@ impl Joint<'_> {
         current: &[f64],
         others: &[Vec<f64>],
         ctx: &Context,
-    ) -> Vec<f64> {
+    ) -> Reselected {
         let f = &self.families[family];
         let mut grid: Vec<Vec<f64>> = f.grid.clone();
         grid.push(current.to_vec());
+        let beside = Beside::new(others, self.blocks, self.y);
         let score = |theta: &Vec<f64>| -> f64 {
-            match self.member_fit(family, theta, others, ctx) {
+            match self.member_fit(family, theta, &beside, ctx) {
                 Some(fit) if fit.within_limits => fit.held_out_sse,
                 _ => f64::INFINITY,
             }
@@ -1252,10 +1293,17 @@ impl Joint<'_> {
         });
         ranked
             .into_iter()
-            .chain(refined)
-            .filter(|(_, e)| e.is_finite())
+            .map(|(theta, e)| (theta, e, false))
+            .chain(refined.into_iter().map(|(theta, e)| (theta, e, true)))
+            .filter(|(_, e, _)| e.is_finite())
             .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map_or_else(|| current.to_vec(), |(theta, _)| theta)
+            .map_or_else(
+                || Reselected {
+                    theta: current.to_vec(),
+                    refined: false,
+                },
+                |(theta, _, refined)| Reselected { theta, refined },
+            )
     }
 
     /// Iterates the state correction to its fixed point: fit every accepted correction, take
@@ -1386,13 +1434,14 @@ impl Joint<'_> {
         if lower == upper {
             return theta.to_vec();
         }
+        let base_columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
+        let base = NormalEquations::new(&base_columns, self.y);
         let sse_at = |value: f64| -> f64 {
             let mut candidate = theta.to_vec();
             candidate[0] = value;
             let own = self.binned(index, ctx, &candidate);
-            let mut columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
-            columns.extend(own.iter().map(|(c, _)| c.as_slice()));
-            least_squares(&columns, self.y).map_or(f64::INFINITY, |(_, sse)| sse)
+            let own: Vec<&[f64]> = own.iter().map(|(c, _)| c.as_slice()).collect();
+            base.fit_with(&own).map_or(f64::INFINITY, |(_, sse)| sse)
         };
         // Time constants are searched on a log scale, delays on a linear one.
         let to = |v: f64| if refine.log { v.abs().ln() } else { v };
