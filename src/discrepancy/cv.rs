@@ -264,6 +264,34 @@ pub struct TargetStats<'a> {
     pub yty: &'a [f64],
 }
 
+/// A target's per-block cross products with a model's columns and with itself, owned: what a
+/// [`TargetStats`] borrows.
+#[derive(Debug, Clone)]
+pub struct TargetProducts {
+    /// `zty[column][block]`.
+    pub zty: Vec<Vec<f64>>,
+    /// `yty[block]`.
+    pub yty: Vec<f64>,
+}
+
+impl TargetProducts {
+    /// The products of `y` with every one of `columns` and with itself, per block.
+    pub fn new(columns: &[&[f64]], y: &[f64], blocks: &Blocks) -> TargetProducts {
+        TargetProducts {
+            zty: columns.iter().map(|c| blocks.dots(c, y)).collect(),
+            yty: blocks.dots(y, y),
+        }
+    }
+
+    /// The products as [`TargetStats`].
+    pub fn stats(&self) -> TargetStats<'_> {
+        TargetStats {
+            zty: self.zty.iter().map(|v| v.as_slice()).collect(),
+            yty: &self.yty,
+        }
+    }
+}
+
 impl ModelGram {
     /// Builds the statistics of the model whose columns are `columns`.
     pub fn new(columns: &[&[f64]], blocks: &Blocks) -> ModelGram {
@@ -445,15 +473,8 @@ mod tests {
         let extended = base.extended(&[&ones, &a], &[&b, &c], &blocks);
         let whole = ModelGram::new(&[&ones, &a, &b, &c], &blocks);
         assert_eq!(extended.per_block, whole.per_block);
-        let zty: Vec<Vec<f64>> = [&ones, &a, &b, &c]
-            .iter()
-            .map(|col| blocks.dots(col, &y))
-            .collect();
-        let yty = blocks.dots(&y, &y);
-        let stats = TargetStats {
-            zty: zty.iter().map(|v| v.as_slice()).collect(),
-            yty: &yty,
-        };
+        let products = TargetProducts::new(&[&ones, &a, &b, &c], &y, &blocks);
+        let stats = products.stats();
         assert_eq!(
             extended.cv_sse(&stats, &blocks),
             whole.cv_sse(&stats, &blocks)
@@ -497,12 +518,8 @@ mod tests {
             .collect();
         let blocks = Blocks::new(n, 4, 3);
         let model = ModelGram::new(&[&ones, &x], &blocks);
-        let zty = [blocks.dots(&ones, &y), blocks.dots(&x, &y)];
-        let yty = blocks.dots(&y, &y);
-        let stats = TargetStats {
-            zty: zty.iter().map(|v| v.as_slice()).collect(),
-            yty: &yty,
-        };
+        let products = TargetProducts::new(&[&ones, &x], &y, &blocks);
+        let stats = products.stats();
         let sse = model.cv_sse(&stats, &blocks).unwrap();
         let mut explicit = 0.0;
         for fold in &blocks.folds {

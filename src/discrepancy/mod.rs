@@ -54,7 +54,7 @@ pub use report::{
 
 use crate::fit::autocorrelation::white_noise_from_differences;
 use align::Aligned;
-use cv::{Blocks, ModelGram, NormalEquations, TargetStats, least_squares};
+use cv::{Blocks, ModelGram, NormalEquations, TargetProducts, TargetStats, least_squares};
 use library::{Context, Family, Kind, families};
 use select::{JointModel, Member, Problem, Step, Store, stepwise};
 use series::{bin_means, bin_ranges, integrated_autocorrelation, mean};
@@ -531,17 +531,9 @@ fn analyse_watched(
     for k in 0..=selected.len() {
         let columns: Vec<&[f64]> = design[..1 + offsets[k]].to_vec();
         let gram = ModelGram::new(&columns, &full_blocks);
-        let zty: Vec<Vec<f64>> = columns
-            .iter()
-            .map(|c| full_blocks.dots(c, &residual))
-            .collect();
-        let yty = full_blocks.dots(&residual, &residual);
-        let stats = TargetStats {
-            zty: zty.iter().map(|v| v.as_slice()).collect(),
-            yty: &yty,
-        };
+        let products = TargetProducts::new(&columns, &residual, &full_blocks);
         let predicted = gram
-            .cv_predictions(&columns, &stats, &full_blocks)
+            .cv_predictions(&columns, &products.stats(), &full_blocks)
             .unwrap_or_else(|| vec![mean(&residual); n]);
         let errors: Vec<f64> = residual
             .iter()
@@ -777,28 +769,14 @@ fn analyse_watched(
 /// Held-out sum of squared errors of `y` on `columns` (the intercept first).
 fn held_out_sse(columns: &[&[f64]], y: &[f64], blocks: &Blocks) -> f64 {
     let gram = ModelGram::new(columns, blocks);
-    let zty: Vec<Vec<f64>> = columns.iter().map(|c| blocks.dots(c, y)).collect();
-    let yty = blocks.dots(y, y);
-    let stats = TargetStats {
-        zty: zty.iter().map(|v| v.as_slice()).collect(),
-        yty: &yty,
-    };
-    gram.cv_sse(&stats, blocks)
+    let products = TargetProducts::new(columns, y, blocks);
+    gram.cv_sse(&products.stats(), blocks)
         .unwrap_or_else(|| y.iter().map(|v| v * v).sum())
 }
 
 /// Held-out R² and RMSE of `y` on `columns` (the intercept first).
 fn held_out_quality(columns: &[&[f64]], y: &[f64], blocks: &Blocks, ss_total: f64) -> FitQuality {
-    let gram = ModelGram::new(columns, blocks);
-    let zty: Vec<Vec<f64>> = columns.iter().map(|c| blocks.dots(c, y)).collect();
-    let yty = blocks.dots(y, y);
-    let stats = TargetStats {
-        zty: zty.iter().map(|v| v.as_slice()).collect(),
-        yty: &yty,
-    };
-    let sse = gram
-        .cv_sse(&stats, blocks)
-        .unwrap_or_else(|| y.iter().map(|v| v * v).sum());
+    let sse = held_out_sse(columns, y, blocks);
     FitQuality {
         r2: 1.0 - sse / ss_total,
         rmse: (sse / y.len().max(1) as f64).sqrt(),
@@ -904,10 +882,8 @@ const LIMIT_ROUNDS: usize = 2;
 struct Beside<'c> {
     columns: Vec<&'c [f64]>,
     gram: ModelGram,
-    /// Zᵀy per block of each column.
-    zty: Vec<Vec<f64>>,
-    /// yᵀy per block.
-    yty: Vec<f64>,
+    /// The target's products with them.
+    products: TargetProducts,
 }
 
 impl<'c> Beside<'c> {
@@ -915,8 +891,7 @@ impl<'c> Beside<'c> {
         let columns: Vec<&[f64]> = others.iter().map(|c| c.as_slice()).collect();
         Beside {
             gram: ModelGram::new(&columns, blocks),
-            zty: columns.iter().map(|c| blocks.dots(c, y)).collect(),
-            yty: blocks.dots(y, y),
+            products: TargetProducts::new(&columns, y, blocks),
             columns,
         }
     }
@@ -1168,12 +1143,13 @@ impl Joint<'_> {
         let own_zty: Vec<Vec<f64>> = own.iter().map(|c| self.blocks.dots(c, self.y)).collect();
         let stats = TargetStats {
             zty: others
+                .products
                 .zty
                 .iter()
                 .chain(&own_zty)
                 .map(|v| v.as_slice())
                 .collect(),
-            yty: &others.yty,
+            yty: &others.products.yty,
         };
         let within_limits = f.limits.is_empty() || {
             let beta = gram.full_fit(&stats, self.blocks)?;
