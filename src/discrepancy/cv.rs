@@ -192,10 +192,7 @@ impl<'a> NormalEquations<'a> {
     pub fn fit_with(&self, extra: &[&[f64]]) -> Option<(Vec<f64>, f64)> {
         let k = self.columns.len();
         let p = k + extra.len();
-        let mut g = vec![0.0; p * p];
-        for i in 0..k {
-            g[i * p..i * p + k].copy_from_slice(&self.gram[i * k..(i + 1) * k]);
-        }
+        let mut g = embedded(&self.gram, k, p);
         let mut h = self.cross.clone();
         for (e, column) in extra.iter().enumerate() {
             let i = k + e;
@@ -213,6 +210,16 @@ impl<'a> NormalEquations<'a> {
         let sse = self.yty - 2.0 * cross + quadratic(&g, p, &beta);
         Some((beta, sse.max(0.0)))
     }
+}
+
+/// A k×k matrix (row-major) as the top-left corner of a p×p one, the rest zero: the products
+/// of the columns a model keeps, before a larger model's new ones are filled in.
+fn embedded(matrix: &[f64], k: usize, p: usize) -> Vec<f64> {
+    let mut g = vec![0.0; p * p];
+    for i in 0..k {
+        g[i * p..i * p + k].copy_from_slice(&matrix[i * k..(i + 1) * k]);
+    }
+    g
 }
 
 /// Per-block products of `columns[i]` with every earlier column and itself, for the rows
@@ -312,13 +319,7 @@ impl ModelGram {
         let mut per_block: Vec<Vec<f64>> = self
             .per_block
             .iter()
-            .map(|own| {
-                let mut g = vec![0.0; p * p];
-                for i in 0..k {
-                    g[i * p..i * p + k].copy_from_slice(&own[i * k..(i + 1) * k]);
-                }
-                g
-            })
+            .map(|own| embedded(own, k, p))
             .collect();
         let all: Vec<&[f64]> = columns.iter().chain(extra).copied().collect();
         fill_products(&mut per_block, &all, k, blocks);
