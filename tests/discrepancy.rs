@@ -596,9 +596,9 @@ fn dump_one_case() {
 
 /// The held-out RMSE the default run allows, over the noise σ. The criterion is 1.5×. Copper
 /// loss on the spindle's stator is held to 1.75×: its heat runs through the twin's five-node
-/// network whose convection changes with speed, and under strongly correlated noise the
-/// two-lag correction reaches 1.57× on this run's seed; docs/discrepancy.md reports how often
-/// each effect reaches 1.5× in the full grid.
+/// network whose convection changes with speed, and the two-lag correction reaches 1.59× on
+/// this run's white-noise seed (1.00× on its correlated one); docs/discrepancy.md reports how
+/// often each effect reaches 1.5× in the full grid.
 fn rmse_limit(effect: Effect) -> f64 {
     match effect {
         Effect::CopperLoss => 1.75,
@@ -1644,6 +1644,121 @@ fn assert_named_first_and_not(case: &Case, first: &str, not: &str) {
 fn coolant_tied_with_convection_before_the_refit_is_named_after_it() {
     let case = case_for(Effect::Coolant, 103, Noise::White, 5.0);
     assert_named_first_and_not(&case, "coolant", "speed_dependent_cooling");
+}
+
+/// A spindle whose winding the coolant reaches, written here from its heat balance alone: a
+/// stator of C = 9000 J/K, shedding to the housing through 15 W/K and, while the coolant flows
+/// (in 60 % of the cuts), to the coolant through `coolant_w_per_k` more. The simulation has
+/// the iron loss and lacks the copper loss (0.08 W/A² at 20 °C, copper's resistance rising
+/// 0.393 %/K), so the real stator runs warmer by a rise that solves
+/// C dΔ/dt = 0.08 (1 + 0.00393 (T − 20)) I² − (15 + coolant · g) Δ. Returns (sim, real, σ).
+fn stator_cooled_by_the_coolant(coolant_w_per_k: f64, seed: u64) -> (Recording, Recording, f64) {
+    let sigma = 0.05;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let names = vec![
+        "time_s".to_string(),
+        "S.speed_rpm".into(),
+        "S.current_A".into(),
+        "S.stator_temp_C".into(),
+        "coolant_on".into(),
+        "ambient_C".into(),
+    ];
+    let mut sim = Recording::new("sim", names.clone()).expect("names");
+    let mut real = Recording::new("real", names).expect("names");
+    let (capacity, to_housing) = (9000.0, 15.0);
+    let (mut simulated, mut rise) = (20.0_f64, 0.0_f64);
+    let (mut speed, mut current, mut coolant) = (0.0, 0.0, 0.0);
+    for second in 0..5 * 3600 {
+        if second % 600 == 0 {
+            // A new operation every 10 minutes: idle, or a cut at some speed and load.
+            let cutting = rng.random::<f64>() < 0.75;
+            speed = if cutting {
+                rng.random_range(800.0..6000.0_f64).round()
+            } else {
+                0.0
+            };
+            current = if cutting {
+                rng.random_range(10.0..60.0)
+            } else {
+                0.0
+            };
+            coolant = if cutting && rng.random::<f64>() < 0.6 {
+                1.0
+            } else {
+                0.0
+            };
+        }
+        let t = f64::from(second);
+        let iron = 8.0 * (speed / 1000.0_f64).powf(1.5);
+        simulated += (iron - to_housing * (simulated - 20.0)) / capacity;
+        let shed = to_housing + coolant * coolant_w_per_k;
+        let winding = simulated + rise;
+        let copper = 0.08 * (1.0 + 0.00393 * (winding - 20.0)) * current * current;
+        rise += (copper - shed * rise) / capacity;
+        let noise: f64 = rng.sample(rand_distr::StandardNormal);
+        sim.push_row(&[t, speed, current, simulated, coolant, 20.0])
+            .expect("row");
+        real.push_row(&[
+            t,
+            speed,
+            current,
+            simulated + rise + sigma * noise,
+            coolant,
+            20.0,
+        ])
+        .expect("row");
+    }
+    (sim, real, sigma)
+}
+
+/// Copper heat concealed on a stator the coolant reaches (written above, not the twin). While
+/// the coolant flows the winding's extra warmth leaves 40 % faster: a heat path with one rate
+/// fits neither half, and 16 σ was left held out (0.81 °C; the independent check of
+/// docs/discrepancy.md left 7–24 σ on such stators). With lags that run faster while the
+/// coolant flows, the correction fits to the noise and says what share of the steady rise the
+/// coolant takes off (truth 6 / (15 + 6) = 29 %).
+#[test]
+fn copper_heat_that_the_coolant_sheds_faster_is_fitted_with_the_coolant() {
+    let (sim, real, sigma) = stator_cooled_by_the_coolant(6.0, 7);
+    let report = analyse(&sim, &real, "S.stator_temp_C", &Options::default()).unwrap();
+    let Some(copper) = report
+        .findings
+        .first()
+        .filter(|f| f.physics == "copper_loss")
+    else {
+        panic!("{}", report.summary());
+    };
+    assert!(
+        copper.signals.iter().any(|s| s == "coolant_on"),
+        "{}",
+        report.summary()
+    );
+    let share = copper.parameters["coolant_share_of_rise"];
+    assert!((0.24..0.34).contains(&share), "{}", copper.explanation);
+    assert!(copper.explanation.contains("flowing coolant takes"));
+    assert!(report.improved.rmse < 1.5 * sigma, "{}", report.summary());
+}
+
+/// The same stator where the coolant does not reach the winding: the coolant still switches,
+/// but the member without its feedback fits as well, and the finding does not claim it.
+#[test]
+fn copper_heat_the_coolant_does_not_reach_is_not_charged_to_the_coolant() {
+    let (sim, real, sigma) = stator_cooled_by_the_coolant(0.0, 7);
+    let report = analyse(&sim, &real, "S.stator_temp_C", &Options::default()).unwrap();
+    let Some(copper) = report
+        .findings
+        .first()
+        .filter(|f| f.physics == "copper_loss")
+    else {
+        panic!("{}", report.summary());
+    };
+    assert!(
+        !copper.signals.iter().any(|s| s == "coolant_on"),
+        "{}",
+        report.summary()
+    );
+    assert!(!copper.parameters.contains_key("coolant_share_of_rise"));
+    assert!(report.improved.rmse < 1.5 * sigma, "{}", report.summary());
 }
 
 /// The same tie with two effects concealed, where the room wins the first step on the front

@@ -369,10 +369,7 @@ fn analyse_watched(
         .iter()
         .enumerate()
         .flat_map(|(index, family)| family.grid.iter().map(move |theta| (index, theta)))
-        .filter(|(index, theta)| {
-            let family = &families[*index];
-            !family.lagged || family.lags(theta).iter().all(|lag| *lag <= longest)
-        })
+        .filter(|(index, theta)| families[*index].selectable(theta, longest))
         .collect();
     watch.report(BUILD_AT, || {
         format!("building {} candidate corrections", grid.len())
@@ -594,7 +591,7 @@ fn analyse_watched(
                     physics: physics.id().to_string(),
                     explanation,
                     parameters,
-                    signals: family.signals.clone(),
+                    signals: family.member_signals(&s.theta),
                     delta_r2: held_out[selected.len()].r2 - without[k].r2,
                     p_value: s.step.p_value,
                     indistinguishable_from: s

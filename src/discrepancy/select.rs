@@ -1433,6 +1433,7 @@ mod tests {
             lagged: true,
             axis: None,
             state: false,
+            refinement: None,
         }
     }
 

@@ -40,6 +40,125 @@ pub fn lowpass_on_grid(
     }
 }
 
+/// A first-order lag whose rate a switch speeds up: the state follows
+/// τ dy/dt = u − (1 + `speedup` · s) y, with the switch `s` (e.g. coolant flowing, 0 or 1)
+/// read row by row, from rest (y = 0). With the switch off it is the lag of time constant τ;
+/// with it on, the lag of τ / (1 + speedup) towards u / (1 + speedup): a part that sheds its
+/// heat faster while the coolant flows, and settles lower. Each row's input and switch hold
+/// over the step that ends there, as [`lowpass_from`] takes them. `step` is the time base's
+/// [`regular_step`] when the caller knows it (see [`lowpass_on_grid`]).
+pub fn lowpass_switched(
+    time: &[f64],
+    step: Option<f64>,
+    values: &[f64],
+    tau_s: f64,
+    switch: &[f64],
+    speedup: f64,
+) -> Vec<f64> {
+    let n = time.len();
+    if values.len() != n || switch.len() != n {
+        let n = n.min(values.len()).min(switch.len());
+        return switched_per_row(&time[..n], &values[..n], tau_s, &switch[..n], speedup);
+    }
+    match step {
+        Some(step) if n >= LAG_SEGMENTS * MIN_SEGMENT_ROWS => {
+            switched_regular(values, step / tau_s, switch, speedup)
+        }
+        _ => switched_per_row(time, values, tau_s, switch, speedup),
+    }
+}
+
+/// [`lowpass_switched`] row by row, each row with the gain of its own step and rate.
+fn switched_per_row(
+    time: &[f64],
+    values: &[f64],
+    tau_s: f64,
+    switch: &[f64],
+    speedup: f64,
+) -> Vec<f64> {
+    let mut out = Vec::with_capacity(values.len());
+    let mut state = 0.0;
+    let mut previous_t = time.first().copied().unwrap_or(0.0);
+    // The exponential is the cost of this loop: recomputed only when the step or the rate
+    // changes, which on a regular grid is when the switch does.
+    let (mut last_step, mut last_rate, mut gain) = (f64::NAN, f64::NAN, 0.0);
+    for ((&t, &u), &s) in time.iter().zip(values).zip(switch) {
+        let step = t - previous_t;
+        let rate = 1.0 + speedup * s;
+        if step != last_step || rate != last_rate {
+            gain = -(-step * rate / tau_s).exp_m1();
+            (last_step, last_rate) = (step, rate);
+        }
+        state += gain * (u / rate - state);
+        previous_t = t;
+        out.push(state);
+    }
+    out
+}
+
+/// [`lowpass_switched`] on a regular grid of `step_tau` = step / τ, in [`LAG_SEGMENTS`]
+/// stretches computed side by side from rest (each row's decay and input depend only on its
+/// own switch), then joined: a stretch's true values are its own plus the state it starts
+/// from times the decay since, kept row by row as the stretches run.
+fn switched_regular(values: &[f64], step_tau: f64, switch: &[f64], speedup: f64) -> Vec<f64> {
+    let n = values.len();
+    // Per switch state (s = 0, s = 1): the decay over a step and the gain on the input.
+    let keep_of = |rate: f64| (-step_tau * rate).exp();
+    let (keep_off, keep_on) = (keep_of(1.0), keep_of(1.0 + speedup));
+    let coefficients = |s: f64| {
+        if s == 0.0 {
+            (keep_off, 1.0 - keep_off)
+        } else if s == 1.0 {
+            (keep_on, (1.0 - keep_on) / (1.0 + speedup))
+        } else {
+            let rate = 1.0 + speedup * s;
+            let keep = keep_of(rate);
+            (keep, (1.0 - keep) / rate)
+        }
+    };
+    let mut out = Vec::with_capacity(n);
+    out.resize(n, 0.0);
+    let mut decay = Vec::with_capacity(n);
+    decay.resize(n, 0.0);
+    // Row 0: a zero step, the state stays at rest.
+    let len = (n - 1) / LAG_SEGMENTS;
+    {
+        let (inputs, switches) = (&values[1..], &switch[1..]);
+        let mut outs = out[1..].chunks_exact_mut(len);
+        let mut decays = decay[1..].chunks_exact_mut(len);
+        let outputs: [&mut [f64]; LAG_SEGMENTS] =
+            std::array::from_fn(|_| outs.next().map_or(&mut [][..], |o| o));
+        let decays: [&mut [f64]; LAG_SEGMENTS] =
+            std::array::from_fn(|_| decays.next().map_or(&mut [][..], |d| d));
+        let mut state = [0.0; LAG_SEGMENTS];
+        let mut product = [1.0; LAG_SEGMENTS];
+        for j in 0..len {
+            for s in 0..LAG_SEGMENTS {
+                let row = s * len + j;
+                let (keep, gain) = coefficients(switches[row]);
+                state[s] = keep * state[s] + gain * inputs[row];
+                product[s] *= keep;
+                outputs[s][j] = state[s];
+                decays[s][j] = product[s];
+            }
+        }
+    }
+    for s in 1..LAG_SEGMENTS {
+        let carry = out[s * len];
+        let range = 1 + s * len..1 + (s + 1) * len;
+        for (v, d) in out[range.clone()].iter_mut().zip(&decay[range]) {
+            *v += d * carry;
+        }
+    }
+    let mut state = out[LAG_SEGMENTS * len];
+    for row in 1 + LAG_SEGMENTS * len..n {
+        let (keep, gain) = coefficients(switch[row]);
+        state = keep * state + gain * values[row];
+        out[row] = state;
+    }
+    out
+}
+
 /// The lag row by row, each row with the gain of its own time step.
 fn lowpass_per_row(time: &[f64], values: &[f64], tau_s: f64, initial: f64) -> Vec<f64> {
     let mut out = Vec::with_capacity(values.len());
@@ -696,6 +815,70 @@ mod tests {
             lowpass_on_grid(&time, step, short, 60.0, 0.0),
             lowpass_from(&time, short, 60.0, 0.0)
         );
+    }
+
+    /// Switched off (or with no speed-up) it is the plain lag; switched on throughout, a lag
+    /// faster by the speed-up towards the input reduced by it.
+    #[test]
+    fn a_switched_lag_is_the_plain_lag_off_and_a_faster_lower_lag_on() {
+        let time: Vec<f64> = (0..3000).map(|i| f64::from(i) * 0.5).collect();
+        let input: Vec<f64> = (0..3000).map(|i| ((i * 37) % 101) as f64 / 10.0).collect();
+        let tau = 120.0;
+        let plain = lowpass_from(&time, &input, tau, 0.0);
+        let off = lowpass_switched(&time, None, &input, tau, &[0.0; 3000], 1.5);
+        let never = lowpass_switched(&time, None, &input, tau, &[1.0; 3000], 0.0);
+        for ((p, o), v) in plain.iter().zip(&off).zip(&never) {
+            assert!((p - o).abs() < 1e-12 && (p - v).abs() < 1e-12);
+        }
+        // On all the time: the lag of τ / 2.5 of the input / 2.5.
+        let on = lowpass_switched(&time, None, &input, tau, &[1.0; 3000], 1.5);
+        let scaled: Vec<f64> = input.iter().map(|u| u / 2.5).collect();
+        for (a, b) in on.iter().zip(lowpass_from(&time, &scaled, tau / 2.5, 0.0)) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+    }
+
+    /// On a long regular grid the stretches computed side by side and joined give the lag row
+    /// by row, whatever the switch does (on, off, part-way) and wherever the stretches end.
+    #[test]
+    fn a_switched_lag_in_stretches_is_the_lag_row_by_row() {
+        for n in [2048, 5000, 20_011] {
+            let time: Vec<f64> = (0..n).map(|i| i as f64 * 0.5).collect();
+            let input: Vec<f64> = (0..n).map(|i| ((i * 37) % 101) as f64 / 10.0).collect();
+            let switch: Vec<f64> = (0..n)
+                .map(|i| match (i / 173) % 5 {
+                    0 | 1 => 0.0,
+                    2 => 0.5,
+                    _ => 1.0,
+                })
+                .collect();
+            let whole = lowpass_switched(&time, Some(0.5), &input, 90.0, &switch, 2.0);
+            let by_row = switched_per_row(&time, &input, 90.0, &switch, 2.0);
+            for (a, b) in whole.iter().zip(&by_row) {
+                assert!((a - b).abs() < 1e-9 * b.abs().max(1.0), "{a} vs {b}");
+            }
+        }
+    }
+
+    /// A step of heat with the coolant switched on halfway: the closed form of
+    /// τ dy/dt = 1 − (1 + γ s) y, exact at the samples for an input held over each step.
+    #[test]
+    fn a_switched_lag_follows_the_closed_form_across_the_switch() {
+        let (tau, speedup) = (300.0, 2.0);
+        let time: Vec<f64> = (0..=1200).map(f64::from).collect();
+        let switch: Vec<f64> = time.iter().map(|t| f64::from(*t > 600.0)).collect();
+        let lagged = lowpass_switched(&time, None, &[1.0; 1201], tau, &switch, speedup);
+        let at_switch = 1.0 - (-600.0 / tau).exp();
+        for (t, y) in time.iter().zip(&lagged) {
+            let expected = if *t <= 600.0 {
+                1.0 - (-t / tau).exp()
+            } else {
+                let rate = (1.0 + speedup) / tau;
+                let settled = 1.0 / (1.0 + speedup);
+                settled + (at_switch - settled) * (-(t - 600.0) * rate).exp()
+            };
+            assert!((y - expected).abs() < 1e-12, "t {t}: {y} vs {expected}");
+        }
     }
 
     /// The items may take very different times; the results still come in the items' order,
