@@ -309,11 +309,11 @@ pub struct Family {
     /// the corrected simulation (see [`Context::with_state`]) so that, e.g., extra cooling
     /// acts on the temperature the part really has, not on the simulated one.
     pub state: bool,
-    /// A refinement of the family's members that only the joint refit offers, as
-    /// `(signal, theta)`: the members whose nonlinear parameter at index `theta` is positive,
-    /// which also use `signals[signal]`. The selection does not see them: members more
-    /// flexible than the physics needs to be named fit the surrogates' slow waves too, and
-    /// would raise the null that every correction is tested against.
+    /// A refinement of the family's members that only the refit after the selection offers,
+    /// as `(signal, theta)`: the members whose nonlinear parameter at index `theta` is
+    /// positive, which also use `signals[signal]`. The selection does not see them: members
+    /// more flexible than the physics needs to be named fit the surrogates' slow waves too,
+    /// and would raise the null that every correction is tested against.
     pub refinement: Option<(usize, usize)>,
 }
 
@@ -931,8 +931,8 @@ fn warmth(ctx: &Context, heat: &[f64], theta: &[f64]) -> Vec<f64> {
 /// ([`COOLANT_SPEEDUPS`]) and a feedback driver, the coolant times the member's warmth: how
 /// fast a part sheds its heat switches with the coolant, and a heat path with one rate fits
 /// neither half. These are the family's [`Family::refinement`]: the physics is named with
-/// the members that ignore the coolant, and the joint refit chooses among all of them, so a
-/// part the coolant does not reach is not charged for terms it cannot use. Offered to the
+/// the members that ignore the coolant, and the refit after the selection chooses among all
+/// of them, so a part the coolant does not reach is not charged for terms it cannot use. Offered to the
 /// selection too, they named the copper heat on the front bearing where it named coolant
 /// before, but their fit to the surrogates' slow waves left two large effects of the
 /// independent check unnamed (thermal inertia on the elongation, copper heat on the front

@@ -436,6 +436,7 @@ fn analyse_watched(
         state: None,
         watch,
         fixed: FixedMembers::default(),
+        refinements: false,
     };
     let steps = stepwise(
         &Problem {
@@ -451,6 +452,19 @@ fn analyse_watched(
         watch,
         SELECT_AT..REFIT_AT,
     )?;
+    // The named corrections may now take their refined forms: once, beside each other, after
+    // every step is decided (a form refined at each step costs a refit of its whole family
+    // there, and the names would not change).
+    if joint
+        .accepted
+        .iter()
+        .zip(&joint.active)
+        .any(|((family, _), active)| *active && families[*family].refinement.is_some())
+    {
+        watch.report(REFIT_AT, || "refining the corrections' forms".into())?;
+        joint.refinements = true;
+        joint.refit_jointly();
+    }
     watch.report(REFIT_AT, || "refitting on all rows".into())?;
     let state_ctx = joint.state_context();
     let accepted = std::mem::take(&mut joint.accepted);
@@ -945,6 +959,10 @@ struct Joint<'a> {
     watch: &'a Watch<'a>,
     /// Members of fixed shape already built on `ctx` and `bins`.
     fixed: FixedMembers,
+    /// Whether a correction may be chosen again among its family's refinements
+    /// ([`Family::refinement`]): not while the selection runs, which names the physics with
+    /// the members it was offered, but in the refit after it.
+    refinements: bool,
 }
 
 impl Joint<'_> {
@@ -1235,7 +1253,12 @@ impl Joint<'_> {
         ctx: &Context,
     ) -> Reselected {
         let f = &self.families[family];
-        let mut grid: Vec<Vec<f64>> = f.grid.clone();
+        let mut grid: Vec<Vec<f64>> = f
+            .grid
+            .iter()
+            .filter(|theta| self.refinements || !f.uses_refinement(theta))
+            .cloned()
+            .collect();
         grid.push(current.to_vec());
         let beside = Beside::new(others, self.blocks, self.y);
         let score = |theta: &Vec<f64>| -> f64 {
