@@ -1711,6 +1711,20 @@ fn stator_cooled_by_the_coolant(coolant_w_per_k: f64, seed: u64) -> (Recording, 
     (sim, real, sigma)
 }
 
+/// The report on [`stator_cooled_by_the_coolant`] (program seed 7), which must name copper heat
+/// first, and the noise σ.
+fn copper_named_first_on_a_stator(coolant_w_per_k: f64) -> (DiscrepancyReport, f64) {
+    let (sim, real, sigma) = stator_cooled_by_the_coolant(coolant_w_per_k, 7);
+    let report = analyse(&sim, &real, "S.stator_temp_C", &Options::default()).unwrap();
+    assert_eq!(
+        report.findings.first().map(|f| f.physics.as_str()),
+        Some("copper_loss"),
+        "{}",
+        report.summary()
+    );
+    (report, sigma)
+}
+
 /// Copper heat concealed on a stator the coolant reaches (written above, not the twin). While
 /// the coolant flows the winding's extra warmth leaves 40 % faster: a heat path with one rate
 /// fits neither half, and 16 σ was left held out (0.81 °C; the independent check of
@@ -1719,15 +1733,8 @@ fn stator_cooled_by_the_coolant(coolant_w_per_k: f64, seed: u64) -> (Recording, 
 /// coolant takes off (truth 6 / (15 + 6) = 29 %).
 #[test]
 fn copper_heat_that_the_coolant_sheds_faster_is_fitted_with_the_coolant() {
-    let (sim, real, sigma) = stator_cooled_by_the_coolant(6.0, 7);
-    let report = analyse(&sim, &real, "S.stator_temp_C", &Options::default()).unwrap();
-    let Some(copper) = report
-        .findings
-        .first()
-        .filter(|f| f.physics == "copper_loss")
-    else {
-        panic!("{}", report.summary());
-    };
+    let (report, sigma) = copper_named_first_on_a_stator(6.0);
+    let copper = &report.findings[0];
     assert!(
         copper.signals.iter().any(|s| s == "coolant_on"),
         "{}",
@@ -1740,18 +1747,11 @@ fn copper_heat_that_the_coolant_sheds_faster_is_fitted_with_the_coolant() {
 }
 
 /// The same stator where the coolant does not reach the winding: the coolant still switches,
-/// but the member without its feedback fits as well, and the finding does not claim it.
+/// but the members that ignore it fit as well, and the finding does not claim it.
 #[test]
 fn copper_heat_the_coolant_does_not_reach_is_not_charged_to_the_coolant() {
-    let (sim, real, sigma) = stator_cooled_by_the_coolant(0.0, 7);
-    let report = analyse(&sim, &real, "S.stator_temp_C", &Options::default()).unwrap();
-    let Some(copper) = report
-        .findings
-        .first()
-        .filter(|f| f.physics == "copper_loss")
-    else {
-        panic!("{}", report.summary());
-    };
+    let (report, sigma) = copper_named_first_on_a_stator(0.0);
+    let copper = &report.findings[0];
     assert!(
         !copper.signals.iter().any(|s| s == "coolant_on"),
         "{}",
