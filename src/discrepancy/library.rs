@@ -897,22 +897,32 @@ fn thermal_family(
 /// rate of its lags × (1 + each), offered beside the rate that ignores the coolant
 /// ([`heat_source_family`]). A feedback term around each (the coolant times the warmth)
 /// reads the speed-up between them. On a stator written from its heat balance (5 h at 1 Hz,
-/// as `tests/discrepancy.rs` writes it), a true speed-up of 0.4 came within 1.0–1.3 σ held
-/// out over four programs and one of 1, midway between the two, within 1.3–2.4 σ over five,
-/// where the rate that ignores the coolant left 3–17 σ.
+/// as `tests/discrepancy.rs` writes it; five programs each), a true speed-up of 0.4 came
+/// within 1.0 σ held out, where the rate that ignores the coolant left 2.8–17 σ, and one of 1,
+/// midway between the two, within 1.2–2.5 σ, where it left 4.9–7.6 σ.
 const COOLANT_SPEEDUPS: [f64; 2] = [0.5, 2.0];
 
-/// The speed-up of a member of a [`heat_source_family`] (0: the coolant plays no part), with
-/// the coolant switch it applies to.
-fn coolant_speedup<'c>(ctx: &'c Context, theta: &[f64]) -> Option<(&'c [f64], f64)> {
+/// The coolant switch and the speed-up a member of a [`heat_source_family`] builds its lags
+/// with, or `None` when the coolant plays no part in it (its speed-up 0, or no coolant that
+/// switches).
+fn member_coolant<'c>(ctx: &'c Context, theta: &[f64]) -> Option<(&'c [f64], f64)> {
     let speedup = theta.get(1).copied().filter(|s| *s > 0.0)?;
     Some((ctx.switching_coolant()?, speedup))
+}
+
+/// The coolant speed-up of a member of a [`heat_source_family`] when it uses the coolant
+/// ([`Family::refinement`] on `coolant_on`), read from the family alone.
+fn coolant_speedup_of(family: &Family, theta: &[f64]) -> Option<f64> {
+    let (signal, switch) = family.refinement?;
+    let on_coolant = family.signals.get(signal).is_some_and(|s| s == COOLANT);
+    let speedup = theta.get(switch).copied().filter(|s| *s > 0.0)?;
+    on_coolant.then_some(speedup)
 }
 
 /// What a heat source's driver has added to the part by each row, through a lag of time
 /// constant `tau` that runs faster while the coolant flows by the member's speed-up.
 fn cooled_lag(ctx: &Context, driver: &[f64], tau: f64, theta: &[f64]) -> Vec<f64> {
-    match coolant_speedup(ctx, theta) {
+    match member_coolant(ctx, theta) {
         Some((coolant, speedup)) => {
             lowpass_switched(&ctx.time, ctx.regular_step, driver, tau, coolant, speedup)
         }
@@ -967,7 +977,7 @@ fn heat_source_family(
         refine: Some(Refine { log: true }),
         build: Box::new(move |ctx, theta| {
             let mut columns = drivers(ctx, theta);
-            if let (Some((coolant, _)), Some(heat)) = (coolant_speedup(ctx, theta), columns.first())
+            if let (Some((coolant, _)), Some(heat)) = (member_coolant(ctx, theta), columns.first())
             {
                 let warm = warmth(ctx, heat, theta);
                 columns.push(coolant.iter().zip(&warm).map(|(c, w)| c * w).collect());
@@ -1695,25 +1705,26 @@ pub fn explain(
     // with the coolant flowing, the heat settles at heat / (1 + speed-up) through its lags,
     // and the feedback (the coolant times that warmth) at that / (1 + speed-up) again: the
     // rise with the coolant over the rise without is 1/(1 + γ) + (feedback gain / g0)/(1 + γ)².
-    let coolant_note = if family.uses_refinement(theta) && g0 > 0.0 {
-        let drivers = coefficients.len() / family.driver_columns(theta, 0).len().max(1);
-        let settle = 1.0 / (1.0 + theta[1]);
-        let feedback = driver(drivers.saturating_sub(1)).0 / g0;
-        let share = 1.0 - settle - feedback * settle * settle;
-        p.insert("coolant_share_of_rise".into(), share);
-        if share >= 0.0 {
-            format!(
-                "; flowing coolant takes {:.0} % off its steady rise",
-                100.0 * share
-            )
-        } else {
-            format!(
-                "; flowing coolant adds {:.0} % to its steady rise",
-                -100.0 * share
-            )
+    let coolant_note = match coolant_speedup_of(family, theta) {
+        Some(speedup) if g0 > 0.0 => {
+            let drivers = coefficients.len() / family.driver_columns(theta, 0).len().max(1);
+            let settle = 1.0 / (1.0 + speedup);
+            let feedback = driver(drivers.saturating_sub(1)).0 / g0;
+            let share = 1.0 - settle - feedback * settle * settle;
+            p.insert("coolant_share_of_rise".into(), share);
+            if share >= 0.0 {
+                format!(
+                    "; flowing coolant takes {:.0} % off its steady rise",
+                    100.0 * share
+                )
+            } else {
+                format!(
+                    "; flowing coolant adds {:.0} % to its steady rise",
+                    -100.0 * share
+                )
+            }
         }
-    } else {
-        String::new()
+        _ => String::new(),
     };
     let text = match family.kind {
         Kind::CalibrationGain => {
