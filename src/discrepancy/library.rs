@@ -930,13 +930,14 @@ fn cooled_lag(ctx: &Context, driver: &[f64], tau: f64, theta: &[f64]) -> Vec<f64
     }
 }
 
-/// The extra warmth a heat source leaves in the part: its heat through the member's first lag.
-fn warmth(ctx: &Context, heat: &[f64], theta: &[f64]) -> Vec<f64> {
-    cooled_lag(ctx, heat, theta[0], theta)
-}
+/// A heat source: its heat row by row, and the factors by which its extra warmth in the part
+/// leaves faster (each times the warmth is a feedback driver of the heat path), or `None`
+/// when its signals are missing.
+type HeatSource = Box<dyn Fn(&Context) -> Option<(Vec<f64>, Vec<Vec<f64>>)> + Send + Sync>;
 
-/// A heat source's family: `drivers` (the first the heat itself) reach the target through
-/// fitted lags from rest. Where the coolant both flows and stops,
+/// A heat source's family: its heat and feedback drivers (`source`'s factors times the
+/// warmth, the heat through the member's first lag) reach the target through fitted lags
+/// from rest. Where the coolant both flows and stops,
 /// every member is offered again with lags that run faster while it flows
 /// ([`COOLANT_SPEEDUPS`]) and a feedback driver, the coolant times the member's warmth: how
 /// fast a part sheds its heat switches with the coolant, and a heat path with one rate fits
@@ -956,7 +957,7 @@ fn heat_source_family(
     kind: Physics,
     mut signals: Vec<String>,
     taus: &[f64],
-    drivers: Drivers,
+    source: HeatSource,
     limits: Vec<GainLimit>,
     axis: AxisId,
 ) -> Family {
@@ -976,11 +977,21 @@ fn heat_source_family(
         grid: thermal_grid(taus, &speedups),
         refine: Some(Refine { log: true }),
         build: Box::new(move |ctx, theta| {
-            let mut columns = drivers(ctx, theta);
-            if let (Some((coolant, _)), Some(heat)) = (member_coolant(ctx, theta), columns.first())
-            {
-                let warm = warmth(ctx, heat, theta);
-                columns.push(coolant.iter().zip(&warm).map(|(c, w)| c * w).collect());
+            let Some((heat, factors)) = source(ctx) else {
+                return vec![];
+            };
+            // The warmth is built once for every feedback term, the coolant's among them.
+            let coolant = member_coolant(ctx, theta).map(|(coolant, _)| coolant);
+            let warm = if factors.is_empty() && coolant.is_none() {
+                Vec::new()
+            } else {
+                cooled_lag(ctx, &heat, theta[0], theta)
+            };
+            let shed = |factor: &[f64]| factor.iter().zip(&warm).map(|(f, w)| f * w).collect();
+            let mut columns: Vec<Vec<f64>> = factors.iter().map(|f| shed(f)).collect();
+            columns.insert(0, heat);
+            if let Some(coolant) = coolant {
+                columns.push(shed(coolant));
             }
             let ratio = theta.last().copied().unwrap_or(0.0);
             columns
@@ -1362,13 +1373,9 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             axis_column(axis, Quantity::StatorTemp),
                         ],
                         &taus,
-                        Box::new(move |ctx, theta| {
-                            let Some(a) = ctx.axis(axis) else {
-                                return vec![];
-                            };
-                            let Some(current) = a.current.as_ref() else {
-                                return vec![];
-                            };
+                        Box::new(move |ctx| {
+                            let a = ctx.axis(axis)?;
+                            let current = a.current.as_ref()?;
                             // I²R with the winding's resistance rising with its temperature.
                             let heat: Vec<f64> = current
                                 .iter()
@@ -1382,14 +1389,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                                 .collect();
                             // The extra warmth leaves faster while the motor spins (forced
                             // convection, ∝ n^0.8): the feedback term of the heat path.
-                            let warm = warmth(ctx, &heat, theta);
-                            let shed = a
-                                .speed_power(0.8)
-                                .iter()
-                                .zip(&warm)
-                                .map(|(p, w)| p * w)
-                                .collect();
-                            vec![heat, shed]
+                            Some((heat, vec![a.speed_power(0.8).into_owned()]))
                         }),
                         temperature
                             .then_some(GainLimit::positive(0))
