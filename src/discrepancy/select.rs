@@ -1166,45 +1166,43 @@ fn masked_pair(
         );
         base
     };
-    let mut best: Option<(MaskedPair, f64)> = None; // and the error the pair leaves
-    for &(first, first_alone) in &firsts {
+    // Each first candidate is judged on its own (two selections on top of it), so they run
+    // side by side; the best pair is then taken in the candidates' order, as one by one.
+    let judged = parallel_map(&firsts, |&(first, first_alone)| {
         let first_kind = kind_of(first);
         let given_first = ViewStep::new(problem, view, with(first), |kind| {
             kind != first_kind && !chosen_kinds.contains(&kind)
         });
-        let Some((sse_given_first, partner_gains)) = given_first.gains(problem, problem.y) else {
-            continue;
-        };
-        let Some((partner, partner_given_first)) = best_member(&partner_gains) else {
-            continue;
-        };
+        let (sse_given_first, partner_gains) = given_first.gains(problem, problem.y)?;
+        let (partner, partner_given_first) = best_member(&partner_gains)?;
         if partner_given_first < options.dominant_gain {
-            continue;
+            return None;
         }
         let given_partner = ViewStep::new(problem, view, with(partner), |kind| kind == first_kind);
-        let Some(first_given_partner) = given_partner
+        let first_given_partner = given_partner
             .gains(problem, problem.y)
-            .and_then(|(_, g)| g[first])
-        else {
-            continue;
-        };
+            .and_then(|(_, g)| g[first])?;
         if first_given_partner < options.dominant_gain {
-            continue;
+            return None;
         }
         if contributions_correlation(problem, raw, first, partner)
             .is_none_or(|r| r < MASKED_PAIR_CANCELLING_CORRELATION)
         {
-            continue;
+            return None;
         }
         let partner_alone = gains[partner].unwrap_or(f64::NEG_INFINITY);
         let left = sse_given_first * (1.0 - partner_given_first);
+        let (first, partner) = if partner_alone > first_alone {
+            (partner, first)
+        } else {
+            (first, partner)
+        };
+        Some((MaskedPair { first, partner }, left))
+    });
+    let mut best: Option<(MaskedPair, f64)> = None; // and the error the pair leaves
+    for (pair, left) in judged.into_iter().flatten() {
         if best.as_ref().is_none_or(|(_, l)| left < *l) {
-            let (first, partner) = if partner_alone > first_alone {
-                (partner, first)
-            } else {
-                (first, partner)
-            };
-            best = Some((MaskedPair { first, partner }, left));
+            best = Some((pair, left));
         }
     }
     best.map(|(pair, _)| pair)
