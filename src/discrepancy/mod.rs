@@ -382,10 +382,9 @@ fn analyse_watched(
         if watch.stopped() {
             return Vec::new();
         }
-        let binned = build(&families[index], &ctx, theta)
-            .iter()
-            .map(|c| bin_means(c, &bins))
-            .collect::<Vec<Vec<f64>>>();
+        // Standardised here, on the building threads, rather than as the store takes them.
+        let binned = binned_with_scales(&families[index], &ctx, theta, &bins);
+        let binned = Arc::try_unwrap(binned).unwrap_or_else(|shared| (*shared).clone());
         let mut done = done.lock().unwrap_or_else(|e| e.into_inner());
         *done += 1;
         if done.is_multiple_of(every) {
@@ -403,7 +402,7 @@ fn analyse_watched(
         if binned.is_empty() {
             continue;
         }
-        let range = store.push(binned);
+        let range = store.push_standardised(binned);
         members.push(Member {
             family: index,
             theta: theta.clone(),

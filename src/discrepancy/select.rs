@@ -41,9 +41,17 @@ pub struct Store {
 impl Store {
     /// Adds columns (already binned), standardising them; returns their range.
     pub fn push(&mut self, columns: Vec<Vec<f64>>) -> std::ops::Range<usize> {
+        self.push_standardised(columns.iter().map(|c| standardise(c)).collect())
+    }
+
+    /// Adds columns already binned and [`standardise`]d (each with its scale), as a caller
+    /// that built them on several threads has them; returns their range.
+    pub fn push_standardised(
+        &mut self,
+        columns: Vec<(Vec<f64>, Option<f64>)>,
+    ) -> std::ops::Range<usize> {
         let start = self.columns.len();
-        for column in columns {
-            let (standard, scale) = standardise(&column);
+        for (standard, scale) in columns {
             self.columns.push(standard);
             self.scale.push(scale.unwrap_or(1.0));
             self.usable.push(scale.is_some());
@@ -174,11 +182,15 @@ impl View {
         let rows = store.columns.first().map_or(0, Vec::len);
         let mut matrix = Mat::<f64>::zeros(rows, store.columns.len());
         let mut usable = Vec::with_capacity(store.columns.len());
-        for (c, (column, ok)) in store.columns.iter().zip(&store.usable).enumerate() {
-            let filtered = matrix.col_as_slice_mut(c);
-            highpass_into(column, window, filtered);
+        // Filtered on several threads (the store holds hundreds of columns), then placed.
+        let filtered = parallel_map(&store.columns, |column| {
+            let filtered = highpass(column, window);
             // A column keeping under 1 % of its spread is slow: it has no say in this view.
-            let kept = std_dev(filtered) > 0.01 * std_dev(column).max(1e-300);
+            let kept = std_dev(&filtered) > 0.01 * std_dev(column).max(1e-300);
+            (filtered, kept)
+        });
+        for (c, ((column, kept), ok)) in filtered.into_iter().zip(&store.usable).enumerate() {
+            matrix.col_as_slice_mut(c).copy_from_slice(&column);
             usable.push(*ok && kept);
         }
         View {
