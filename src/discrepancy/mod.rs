@@ -797,19 +797,35 @@ fn held_out_quality(columns: &[&[f64]], y: &[f64], blocks: &Blocks, ss_total: f6
 /// its scale (`None` for a constant column). Empty when the family could not build them.
 type BinnedMember = Arc<Vec<(Vec<f64>, Option<f64>)>>;
 
-/// Builds a member's [`BinnedMember`].
+/// Builds a member's [`BinnedMember`] on `bins`, which cover every row of `ctx`.
 fn binned_with_scales(
     family: &Family,
     ctx: &Context,
     theta: &[f64],
     bins: &[std::ops::Range<usize>],
 ) -> BinnedMember {
-    Arc::new(
-        build(family, ctx, theta)
-            .iter()
-            .map(|c| select::standardise(&bin_means(c, bins)))
-            .collect(),
-    )
+    let columns = match ctx.real_rate {
+        Some(_) => build(family, ctx, theta),
+        // On the context's own rows the columns are checked once binned, not row by row (a
+        // pass over every full-rate column, of which the joint refit builds thousands): the
+        // bins cover every row, and a bin holding a value that is not finite has a mean that
+        // is not finite either.
+        None => (family.build)(ctx, theta),
+    };
+    let rows = ctx.time.len();
+    debug_assert!(
+        bins.first().is_none_or(|b| b.start == 0)
+            && bins.last().is_none_or(|b| b.end == rows)
+            && bins.windows(2).all(|w| w[0].end == w[1].start)
+    );
+    if columns.iter().any(|c| c.len() != rows) {
+        return Arc::new(Vec::new());
+    }
+    let binned: Vec<Vec<f64>> = columns.iter().map(|c| bin_means(c, bins)).collect();
+    if binned.iter().flatten().any(|v| !v.is_finite()) {
+        return Arc::new(Vec::new());
+    }
+    Arc::new(binned.iter().map(|b| select::standardise(b)).collect())
 }
 
 /// Most bin values [`FixedMembers`] keeps (64 MB): a thousand columns of 8,192 bins.
@@ -1499,6 +1515,49 @@ pub fn parameters_by_physics(
 mod tests {
     use super::*;
     use std::sync::Mutex;
+
+    /// A member whose columns hold a value that is not finite is not offered: built for the
+    /// selection it is checked once binned, and its bin's mean is not finite either.
+    #[test]
+    fn a_member_with_a_value_that_is_not_finite_is_dropped_once_binned() {
+        let names = vec!["time_s".to_string(), "S.stator_temp_C".to_string()];
+        let (mut sim, mut real) = (
+            crate::signal::Recording::new("sim", names.clone()).expect("valid names"),
+            crate::signal::Recording::new("real", names).expect("valid names"),
+        );
+        for i in 0..1000 {
+            let t = f64::from(i);
+            sim.push_row(&[t, 20.0]).expect("a row of the schema");
+            real.push_row(&[t, 20.0 + 1e-3 * t]).expect("a row of the schema");
+        }
+        let aligned = Aligned::new(&sim, &real, "S.stator_temp_C").expect("the pair aligns");
+        let ctx = Context::new(&aligned, "S.stator_temp_C");
+        let bins = bin_ranges(ctx.time.len(), 64);
+        let member_with = |bad: f64| {
+            let family = Family {
+                kind: Kind::Physics(library::Physics::SensorOffsetDrift),
+                signals: Vec::new(),
+                theta_names: Vec::new(),
+                grid: vec![Vec::new()],
+                refine: None,
+                build: Box::new(move |ctx: &Context, _: &[f64]| {
+                    let mut column = ctx.time.clone();
+                    column[537] = bad;
+                    vec![column]
+                }),
+                limits: Vec::new(),
+                lagged: false,
+                axis: None,
+                state: false,
+                refinement: None,
+            };
+            binned_with_scales(&family, &ctx, &[], &bins)
+        };
+        assert_eq!(member_with(537.0).len(), 1);
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert!(member_with(bad).is_empty(), "{bad} was offered");
+        }
+    }
 
     /// The observer hears a fraction that never falls (a later phase may report less than an
     /// earlier estimate), and once it says stop every later report is `Cancelled` without
