@@ -667,6 +667,7 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
         // the simpler and report the winner as indistinguishable. A gain miscalibration is
         // simpler than any physics of its width: where the data cannot tell the two apart,
         // the simulation is not claimed to miss physics.
+        let winning = best;
         let (best, runners, indistinguishable) = {
             let width = |m: usize| problem.members[m].columns.len();
             let calibration = |m: usize| {
@@ -714,6 +715,13 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
                 }
                 None => (best, runners, indistinguishable),
             }
+        };
+        // The step reports the gain of the member it takes, not of the one the simpler
+        // replaced (the same view's gains).
+        let relative = if best == winning {
+            relative
+        } else {
+            gains[best].unwrap_or(0.0)
         };
         let (member, relative, runners, indistinguishable, refitted) = if accepted {
             watch.report(at(0.7), || {
