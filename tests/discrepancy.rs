@@ -1448,6 +1448,13 @@ fn a_gain_and_offset_miscalibration_is_calibration_not_physics() {
         );
         assert!(report.findings.is_empty());
         assert!(report.calibration.gain_absorbed, "{}", report.summary());
+        // No physics fits as well: the report says it is not physics.
+        assert!(
+            report.calibration.indistinguishable_from.is_empty(),
+            "{:?}",
+            report.calibration
+        );
+        assert!(report.calibration.explanation.contains("not physics"));
         assert!(
             (report.calibration.gain - 1.04).abs() < 0.01,
             "gain {}",
@@ -1502,7 +1509,7 @@ fn a_drift_on_a_warming_part_is_not_absorbed_as_a_calibration_gain() {
 /// block-by-block test cannot tell them apart. A gain slip is the simpler claim, so it is
 /// absorbed as calibration; before, the drift won by a hair and was reported as physics the
 /// simulation misses (the sweep of docs/discrepancy.md found it on the flange and the X
-/// stator, alone and beside four partners).
+/// stator, alone and beside four partners). The calibration says the drift is not ruled out.
 #[test]
 fn a_drift_indistinguishable_from_a_gain_slip_is_absorbed_as_calibration() {
     let target = reference_column(AxisId::X, "motor_flange_temp_C", None);
@@ -1520,6 +1527,21 @@ fn a_drift_indistinguishable_from_a_gain_slip_is_absorbed_as_calibration() {
     let named: Vec<&str> = report.findings.iter().map(|f| f.physics.as_str()).collect();
     assert_eq!(named, ["ambient_temperature"], "{}", report.summary());
     assert!(report.calibration.gain_absorbed, "{}", report.summary());
+    let calibration = &report.calibration;
+    assert!(
+        calibration
+            .indistinguishable_from
+            .iter()
+            .any(|p| p == "sensor_offset_drift"),
+        "{calibration:?}"
+    );
+    assert!(
+        calibration
+            .explanation
+            .contains("cannot tell it from sensor_offset_drift"),
+        "{}",
+        calibration.explanation
+    );
     assert!(report.improved.rmse < 1.5 * pair.noise_sigma);
 }
 

@@ -576,7 +576,31 @@ fn analyse_watched(
         .collect();
 
     // Calibration and findings.
+    let name_of = |member: usize| match families[members[member].family].kind {
+        Kind::Physics(p) => p.id().to_string(),
+        Kind::CalibrationGain => "calibration".to_string(),
+    };
+    let names_of = |step: &Step| -> Vec<String> {
+        step.indistinguishable.iter().map(|&m| name_of(m)).collect()
+    };
+    let alternatives_of = |step: &Step| -> Vec<Alternative> {
+        step.runners_up
+            .iter()
+            .take(3)
+            .map(|&(m, g)| Alternative {
+                physics: name_of(m),
+                // Runners-up carry relative gains (shares of the error before the step), the
+                // step its absolute gain: compare like with like.
+                relative_gain: if step.gain > 0.0 && step.sse_before > 0.0 {
+                    g * step.sse_before / step.gain
+                } else {
+                    0.0
+                },
+            })
+            .collect()
+    };
     let mut calibration_gain = None;
+    let mut calibration_step = None;
     let mut findings = Vec::new();
     for (k, s) in selected.iter().enumerate() {
         let family = &families[s.family];
@@ -584,6 +608,7 @@ fn analyse_watched(
         match family.kind {
             Kind::CalibrationGain => {
                 calibration_gain = Some((coefficients[0], held_out[k + 1].r2 - held_out[k].r2));
+                calibration_step = Some(&s.step);
             }
             Kind::Physics(physics) => {
                 let (mut parameters, explanation) = library::explain(
@@ -596,10 +621,6 @@ fn analyse_watched(
                 if physics == Physics::SensorOffsetDrift {
                     parameters.insert("offset_at_start".into(), offset);
                 }
-                let name_of = |member: usize| match families[members[member].family].kind {
-                    Kind::Physics(p) => p.id().to_string(),
-                    Kind::CalibrationGain => "calibration".to_string(),
-                };
                 findings.push(Finding {
                     physics: physics.id().to_string(),
                     explanation,
@@ -607,30 +628,10 @@ fn analyse_watched(
                     signals: family.member_signals(&s.theta),
                     delta_r2: held_out[selected.len()].r2 - without[k].r2,
                     p_value: s.step.p_value,
-                    indistinguishable_from: s
-                        .step
-                        .indistinguishable
-                        .iter()
-                        .map(|&m| name_of(m))
-                        .collect(),
+                    indistinguishable_from: names_of(&s.step),
                     masked_by: s.step.masked_by.map(name_of),
                     judged_after_refit: s.step.after_refit,
-                    alternatives: s
-                        .step
-                        .runners_up
-                        .iter()
-                        .take(3)
-                        .map(|&(m, g)| Alternative {
-                            physics: name_of(m),
-                            // Runners-up carry relative gains (shares of the error before
-                            // the step), the step its absolute gain: compare like with like.
-                            relative_gain: if s.step.gain > 0.0 && s.step.sse_before > 0.0 {
-                                g * s.step.sse_before / s.step.gain
-                            } else {
-                                0.0
-                            },
-                        })
-                        .collect(),
+                    alternatives: alternatives_of(&s.step),
                 });
             }
         }
@@ -640,19 +641,29 @@ fn analyse_watched(
     findings.sort_by(|a, b| b.delta_r2.total_cmp(&a.delta_r2));
     let gain = 1.0 + calibration_gain.map_or(0.0, |(g, _)| g);
     let unit = crate::signal::channel::Channel::unit_of(target).unwrap_or("");
+    // A gain slip is the simpler claim where physics of its width predicts as well, and is
+    // taken for it; the report says which physics that was rather than rule it out.
+    let indistinguishable_from = calibration_step.map(names_of).unwrap_or_default();
     let calibration = Calibration {
         offset,
         gain,
         gain_absorbed: calibration_gain.is_some(),
-        explanation: if calibration_gain.is_some() {
+        explanation: if calibration_gain.is_some() && indistinguishable_from.is_empty() {
             format!(
                 "calibration absorbed first: real ≈ {offset:+.4} {unit} + {gain:.4} × sim (a gain miscalibration, not physics)"
+            )
+        } else if calibration_gain.is_some() {
+            format!(
+                "calibration absorbed first: real ≈ {offset:+.4} {unit} + {gain:.4} × sim (taken for a gain miscalibration, the simpler claim: the data cannot tell it from {})",
+                indistinguishable_from.join(", ")
             )
         } else {
             format!(
                 "calibration: an offset of {offset:+.4} {unit} at the start; no gain miscalibration was significant"
             )
         },
+        alternatives: calibration_step.map(alternatives_of).unwrap_or_default(),
+        indistinguishable_from,
     };
     // The calibrated-only held-out figure: offset, plus the gain when it was absorbed.
     let calibrated = {
@@ -1528,7 +1539,8 @@ mod tests {
         for i in 0..1000 {
             let t = f64::from(i);
             sim.push_row(&[t, 20.0]).expect("a row of the schema");
-            real.push_row(&[t, 20.0 + 1e-3 * t]).expect("a row of the schema");
+            real.push_row(&[t, 20.0 + 1e-3 * t])
+                .expect("a row of the schema");
         }
         let aligned = Aligned::new(&sim, &real, "S.stator_temp_C").expect("the pair aligns");
         let ctx = Context::new(&aligned, "S.stator_temp_C");

@@ -80,6 +80,11 @@ pub struct Calibration {
     pub gain_absorbed: bool,
     /// A sentence.
     pub explanation: String,
+    /// Physics of no more columns that predicts the held-out blocks as well as the absorbed
+    /// gain: the gain is the simpler claim and was taken, but the data cannot rule these out.
+    pub indistinguishable_from: Vec<String>,
+    /// The next best physics where the gain was absorbed, with their gains relative to its.
+    pub alternatives: Vec<Alternative>,
 }
 
 /// The noise left once every correction is in, measured on held-out blocks.

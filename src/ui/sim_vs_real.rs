@@ -193,6 +193,8 @@ mod tests {
                 gain: 1.0,
                 gain_absorbed: false,
                 explanation: String::new(),
+                indistinguishable_from: Vec::new(),
+                alternatives: Vec::new(),
             },
             noise_floor: crate::discrepancy::NoiseFloor {
                 rms: 0.0,
