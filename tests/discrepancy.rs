@@ -1176,6 +1176,17 @@ fn the_command_names_a_concealed_effect_and_writes_the_json_contract() {
     );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    // The selection stopped at a candidate it did not name, and the text says which.
+    let last = report["method"]["steps"]
+        .as_array()
+        .and_then(|s| s.last())
+        .expect("selection steps");
+    assert_eq!(last["accepted"], false, "{last}");
+    let unnamed = format!(
+        "strongest candidate not named: {}, ",
+        last["physics"].as_str().unwrap()
+    );
+    assert!(text.contains(&unnamed), "{text}");
     assert_eq!(report["target"], target.as_str());
     assert_eq!(report["rows"], 3 * 3600 + 1);
     assert_eq!(report["verdict"], "missing_physics");

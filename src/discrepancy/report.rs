@@ -260,6 +260,20 @@ pub struct PlotData {
 }
 
 impl DiscrepancyReport {
+    /// The strongest candidate the selection weighed last and did not name, as a sentence:
+    /// how close the analysis came to naming more (or anything, when it says `consistent`).
+    /// `None` when its last step named its candidate.
+    pub fn strongest_unnamed(&self) -> Option<String> {
+        let last = self.method.steps.last().filter(|s| !s.accepted)?;
+        Some(format!(
+            "strongest candidate not named: {}, {:.1} % of the held-out error left (p = {:.3}, tail probability {:.1e}): not enough to name it",
+            last.physics,
+            100.0 * last.relative_gain,
+            last.p_value,
+            last.tail_p
+        ))
+    }
+
     /// The report as a person reads it.
     pub fn summary(&self) -> String {
         let mut s = String::new();
@@ -319,6 +333,9 @@ impl DiscrepancyReport {
                     f.indistinguishable_from.join(", ")
                 );
             }
+        }
+        if let Some(unnamed) = self.strongest_unnamed() {
+            let _ = writeln!(s, "  {unnamed}");
         }
         let describe = |r: &Region| {
             let conditions: Vec<String> = r

@@ -177,6 +177,9 @@ pub fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> Discrepan
         .iter()
         .map(|t| format!("not tested: {} ({})", t.physics, t.reason))
         .collect();
+    if let Some(unnamed) = r.strongest_unnamed() {
+        notes.insert(0, unnamed);
+    }
     if r.findings.is_empty() {
         notes.insert(
             0,
