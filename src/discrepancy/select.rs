@@ -170,9 +170,13 @@ pub struct View {
 impl View {
     /// The data as they are.
     pub fn raw(store: &Store) -> View {
+        let rows = store.columns.first().map_or(0, Vec::len);
+        let (matrix, _) = filled_matrix(rows, store.columns.len(), |c, column| {
+            column.copy_from_slice(&store.columns[c]);
+        });
         View {
             highpass: None,
-            matrix: as_matrix(&store.columns),
+            matrix,
             usable: store.usable.clone(),
         }
     }
@@ -180,19 +184,18 @@ impl View {
     /// High-passed with a moving average of `window` bins.
     pub fn highpassed(store: &Store, window: usize) -> View {
         let rows = store.columns.first().map_or(0, Vec::len);
-        let mut matrix = Mat::<f64>::zeros(rows, store.columns.len());
-        let mut usable = Vec::with_capacity(store.columns.len());
-        // Filtered on several threads (the store holds hundreds of columns), then placed.
-        let filtered = parallel_map(&store.columns, |column| {
-            let filtered = highpass(column, window);
+        let (matrix, kept) = filled_matrix(rows, store.columns.len(), |c, filtered| {
+            let column = &store.columns[c];
+            highpass_into(column, window, filtered);
             // A column keeping under 1 % of its spread is slow: it has no say in this view.
-            let kept = std_dev(&filtered) > 0.01 * std_dev(column).max(1e-300);
-            (filtered, kept)
+            std_dev(filtered) > 0.01 * std_dev(column).max(1e-300)
         });
-        for (c, ((column, kept), ok)) in filtered.into_iter().zip(&store.usable).enumerate() {
-            matrix.col_as_slice_mut(c).copy_from_slice(&column);
-            usable.push(*ok && kept);
-        }
+        let usable = store
+            .usable
+            .iter()
+            .zip(kept)
+            .map(|(ok, kept)| *ok && kept)
+            .collect();
         View {
             highpass: Some(window),
             matrix,
@@ -217,6 +220,57 @@ impl View {
             None => values.to_vec(),
         }
     }
+}
+
+/// A `rows` × `cols` matrix whose column `c` is written by `fill(c, column)`, with what each
+/// call returns in column order. The columns are filled on several threads, a contiguous share
+/// each: a view holds hundreds of columns of thousands of rows, and copying them into place
+/// (and the first touch of the matrix's fresh pages) is most of what building it costs.
+fn filled_matrix<R: Send>(
+    rows: usize,
+    cols: usize,
+    fill: impl Fn(usize, &mut [f64]) -> R + Sync,
+) -> (Mat<f64>, Vec<R>) {
+    let mut matrix = Mat::<f64>::zeros(rows, cols);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .clamp(1, 4)
+        .min(cols.max(1));
+    let share = cols.div_ceil(threads).max(1);
+    let fill = &fill;
+    let results = std::thread::scope(|scope| {
+        let mut rest = matrix.as_mut();
+        let mut handles = Vec::new();
+        let mut start = 0;
+        while start < cols {
+            let width = share.min(cols - start);
+            let (mut part, tail) = rest.split_at_col_mut(width);
+            rest = tail;
+            handles.push(scope.spawn(move || {
+                let mut results = Vec::with_capacity(width);
+                for j in 0..width {
+                    let (column, others) = part.split_at_col_mut(1);
+                    part = others;
+                    let column = column
+                        .col_mut(0)
+                        .try_as_col_major_mut()
+                        .expect("a matrix's columns are contiguous")
+                        .as_slice_mut();
+                    results.push(fill(start + j, column));
+                }
+                results
+            }));
+            start += width;
+        }
+        handles
+            .into_iter()
+            .flat_map(|h| match h.join() {
+                Ok(results) => results,
+                Err(panic) => std::panic::resume_unwind(panic),
+            })
+            .collect()
+    });
+    (matrix, results)
 }
 
 fn as_matrix(columns: &[Vec<f64>]) -> Mat<f64> {
