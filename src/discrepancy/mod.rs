@@ -690,11 +690,19 @@ fn analyse_watched(
     }
     watch.report(LOCATE_AT, || "locating the mismatch".into())?;
     let conditions = localise::Conditions::new(&aligned);
-    let located = localise::localise(&ctx.time, &mismatch, &cv_residual, &conditions);
+    // The noise floor's correlation time (one long FFT) is found beside the localisation.
+    let (located, correlation_samples) = std::thread::scope(|scope| {
+        let correlation =
+            scope.spawn(|| integrated_autocorrelation(&cv_residual, (n / 10).clamp(2, 20_000)));
+        let located = localise::localise(&ctx.time, &mismatch, &cv_residual, &conditions);
+        match correlation.join() {
+            Ok(samples) => (located, samples),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    });
     let noise_floor = NoiseFloor {
         rms: series::rms(&cv_residual),
-        correlation_time_s: integrated_autocorrelation(&cv_residual, (n / 10).clamp(2, 20_000))
-            * ctx.step_s,
+        correlation_time_s: correlation_samples * ctx.step_s,
         sample_noise_rms: white_noise_from_differences(&cv_residual),
         window_s: located.window_s,
     };
