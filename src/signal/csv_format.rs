@@ -166,8 +166,15 @@ impl<R: Read> RecordingReader<R> {
                 found: self.record.len(),
             });
         }
+        // The row's text is checked once (UTF-8), not cell by cell; a row that is not text
+        // is parsed cell by cell so that the error names the cell.
+        let text = std::str::from_utf8(self.record.as_slice()).ok();
         for (i, cell) in self.record.iter().enumerate() {
-            let value = parse_cell(cell).ok_or_else(|| RecordingError::NonNumeric {
+            let parsed = match text.zip(self.record.range(i)).and_then(|(t, r)| t.get(r)) {
+                Some(text_cell) => parse_text_cell(text_cell),
+                None => parse_cell(cell),
+            };
+            let value = parsed.ok_or_else(|| RecordingError::NonNumeric {
                 at: self.location(line, Some(i)),
                 cell: quote_cell(cell),
             })?;
@@ -256,10 +263,14 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
 
 /// Parses one cell: a decimal or scientific number with optional surrounding spaces.
 fn parse_cell(cell: &[u8]) -> Option<f64> {
-    let cell = cell.trim_ascii();
+    parse_text_cell(std::str::from_utf8(cell).ok()?)
+}
+
+/// [`parse_cell`] of a cell already known to be text.
+fn parse_text_cell(cell: &str) -> Option<f64> {
     // Rust's float parser also takes "inf", "NaN" and "infinity"; those are reported as
     // non-finite, which is the more useful message, so they pass through here.
-    std::str::from_utf8(cell).ok()?.parse::<f64>().ok()
+    cell.trim_ascii().parse::<f64>().ok()
 }
 
 fn trim_line_end(line: &[u8]) -> &[u8] {
@@ -463,6 +474,23 @@ mod tests {
         assert_eq!(
             err,
             "t.csv: line 5, column 2 (`X.speed_rpm`): `abc` is not a number"
+        );
+    }
+
+    /// A row is checked as text once; a cell that is not text is still named, with the
+    /// rows before it kept, and a quoted number in a text row reads as the number.
+    #[test]
+    fn a_cell_that_is_not_text_is_named_and_quoted_numbers_read() {
+        let mut bytes = b"time_s,a,b\n0,\"1.5\",2\n1,2,".to_vec();
+        bytes.extend([0xff, b'7', b'\n']);
+        let (recording, error) = RecordingReader::from_reader(bytes.as_slice(), "t.csv")
+            .expect("a header")
+            .read_until_error();
+        assert_eq!(recording.column("a").expect("a column"), &[1.5]);
+        let error = error.expect("the bad row").to_string();
+        assert!(
+            error.starts_with("t.csv: line 3, column 3 (`b`): ") && error.contains("not a number"),
+            "{error}"
         );
     }
 
