@@ -380,11 +380,10 @@ fn analyse_watched(
     let every = (grid.len() / 25).max(1);
     let built = series::parallel_map(&grid, |&(index, theta)| {
         if watch.stopped() {
-            return Vec::new();
+            return BinnedMember::default();
         }
         // Standardised here, on the building threads, rather than as the store takes them.
         let binned = binned_with_scales(&families[index], &ctx, theta, &bins);
-        let binned = Arc::try_unwrap(binned).unwrap_or_else(|shared| (*shared).clone());
         let mut done = done.lock().unwrap_or_else(|e| e.into_inner());
         *done += 1;
         if done.is_multiple_of(every) {
@@ -398,11 +397,19 @@ fn analyse_watched(
         binned
     });
     watch.report(SELECT_AT, || "preparing the selection".into())?;
+    // The joint refit chooses each correction again from its whole family, and a refused step
+    // asked again refits the model once for every rival kind: the members of fixed shape built
+    // here are kept for it rather than built again there.
+    let fixed = FixedMembers::default();
     for ((index, theta), binned) in grid.into_iter().zip(built) {
         if binned.is_empty() {
             continue;
         }
-        let range = store.push_standardised(binned);
+        if !families[index].state {
+            fixed.keep(index, theta, &binned);
+        }
+        let columns = Arc::try_unwrap(binned).unwrap_or_else(|shared| (*shared).clone());
+        let range = store.push_standardised(columns);
         members.push(Member {
             family: index,
             theta: theta.clone(),
@@ -434,7 +441,7 @@ fn analyse_watched(
         min_relative_gain: options.min_relative_gain,
         state: None,
         watch,
-        fixed: FixedMembers::default(),
+        fixed,
         refinements: false,
     };
     let steps = stepwise(
