@@ -863,7 +863,8 @@ const FIXED_MEMBERS_BUDGET: usize = 8 << 20;
 /// are built over and over: room and copper heat concealed over 24 h built 3,162 such members,
 /// 1,041 of them distinct. Shared by the copies of a joint model, which all stand on the same
 /// context and bins; the kept columns are the very ones a build would give, so keeping them
-/// changes no figure. Past [`FIXED_MEMBERS_BUDGET`] nothing more is kept.
+/// changes no figure. The analysis starts it with the selection's candidates of fixed shape,
+/// built the same way. Past [`FIXED_MEMBERS_BUDGET`] nothing more is kept.
 #[derive(Clone, Default)]
 struct FixedMembers {
     kept: Arc<Mutex<KeptMembers>>,
