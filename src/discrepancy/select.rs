@@ -13,7 +13,9 @@ use rand::rngs::StdRng;
 
 use super::cv::{Blocks, ModelGram, TargetStats, least_squares};
 use super::library::{Family, Kind};
-use super::series::{SurrogateSpectrum, mean, moving_average, parallel_map, std_dev};
+use super::series::{
+    SurrogateSpectrum, joined, mean, moving_average, parallel_map, std_dev, worker_threads,
+};
 use super::{DiscrepancyError, Options, Watch};
 
 /// One candidate member: a family at one point of its parameter grid.
@@ -232,11 +234,7 @@ fn filled_matrix<R: Send>(
     fill: impl Fn(usize, &mut [f64]) -> R + Sync,
 ) -> (Mat<f64>, Vec<R>) {
     let mut matrix = Mat::<f64>::zeros(rows, cols);
-    let threads = std::thread::available_parallelism()
-        .map_or(1, std::num::NonZeroUsize::get)
-        .clamp(1, 4)
-        .min(cols.max(1));
-    let share = cols.div_ceil(threads).max(1);
+    let share = cols.div_ceil(worker_threads(cols)).max(1);
     let fill = &fill;
     let results = std::thread::scope(|scope| {
         let mut rest = matrix.as_mut();
@@ -262,13 +260,7 @@ fn filled_matrix<R: Send>(
             }));
             start += width;
         }
-        handles
-            .into_iter()
-            .flat_map(|h| match h.join() {
-                Ok(results) => results,
-                Err(panic) => std::panic::resume_unwind(panic),
-            })
-            .collect()
+        joined(handles)
     });
     (matrix, results)
 }

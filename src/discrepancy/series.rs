@@ -352,10 +352,7 @@ pub fn legendre(k: usize, u: f64) -> f64 {
 /// differ in cost (a family of two-lag members next to one of plain gains), and contiguous
 /// chunks would leave one thread with the dear ones while the others wait.
 pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, std::num::NonZeroUsize::get)
-        .clamp(1, 4)
-        .min(items.len().max(1));
+    let threads = worker_threads(items.len());
     if threads <= 1 {
         return items.iter().map(&f).collect();
     }
@@ -375,16 +372,30 @@ pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -
                 })
             })
             .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| match h.join() {
-                Ok(results) => results,
-                Err(panic) => std::panic::resume_unwind(panic),
-            })
-            .collect()
+        joined(handles)
     });
     indexed.sort_unstable_by_key(|(i, _)| *i);
     indexed.into_iter().map(|(_, r)| r).collect()
+}
+
+/// How many threads share `tasks` tasks: as many as the machine has cores, at most four, and
+/// no more than there are tasks.
+pub fn worker_threads(tasks: usize) -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .clamp(1, 4)
+        .min(tasks.max(1))
+}
+
+/// Every scoped thread's results, thread after thread; a thread's panic is raised again here.
+pub fn joined<R>(handles: Vec<std::thread::ScopedJoinHandle<'_, Vec<R>>>) -> Vec<R> {
+    handles
+        .into_iter()
+        .flat_map(|h| match h.join() {
+            Ok(results) => results,
+            Err(panic) => std::panic::resume_unwind(panic),
+        })
+        .collect()
 }
 
 /// Arithmetic mean (0 for an empty slice).
