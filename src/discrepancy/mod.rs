@@ -426,6 +426,7 @@ fn analyse_watched(
         }
     });
     views.truncate(2);
+    store.release_columns();
     // Every accepted correction at its current parameters, and the target's state correction
     // the state-dependent ones are rebuilt on; both are updated jointly after each acceptance.
     let mut joint = Joint {

@@ -46,6 +46,12 @@ impl Store {
         self.push_standardised(columns.iter().map(|c| standardise(c)).collect())
     }
 
+    /// Frees the columns once the views hold their own copies ([`View::raw`],
+    /// [`View::highpassed`]); the scales stay, since coefficients are read through them.
+    pub fn release_columns(&mut self) {
+        self.columns = Vec::new();
+    }
+
     /// Adds columns already binned and [`standardise`]d (each with its scale), as a caller
     /// that built them on several threads has them; returns their range.
     pub fn push_standardised(
