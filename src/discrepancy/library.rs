@@ -819,11 +819,17 @@ const COPPER_TEMPERATURE_COEFFICIENT: f64 = 0.00393;
 /// Heat reaching the target from a driver: one first-order lag, or two in parallel (a sum of
 /// two exponentials, which is what a two-node thermal network produces).
 fn heat_path(ctx: &Context, driver: &[f64], theta: &[f64], start: Start) -> Vec<Vec<f64>> {
+    heat_path_through(theta, |tau| accumulated(ctx, driver, tau, start))
+}
+
+/// [`heat_path`]'s lags at τ = `theta[0]` and, for two lags, at τ times the member's lag
+/// ratio (its last parameter), each built by `lag`.
+fn heat_path_through(theta: &[f64], lag: impl Fn(f64) -> Vec<f64>) -> Vec<Vec<f64>> {
     let tau = theta[0];
     let ratio = theta.last().copied().unwrap_or(0.0);
-    let mut columns = vec![accumulated(ctx, driver, tau, start)];
+    let mut columns = vec![lag(tau)];
     if ratio > 0.0 {
-        columns.push(accumulated(ctx, driver, tau * ratio, start));
+        columns.push(lag(tau * ratio));
     }
     columns
 }
@@ -993,16 +999,9 @@ fn heat_source_family(
             if let Some(coolant) = coolant {
                 columns.push(shed(coolant));
             }
-            let ratio = theta.last().copied().unwrap_or(0.0);
             columns
                 .iter()
-                .flat_map(|d| {
-                    let mut lags = vec![cooled_lag(ctx, d, theta[0], theta)];
-                    if ratio > 0.0 {
-                        lags.push(cooled_lag(ctx, d, theta[0] * ratio, theta));
-                    }
-                    lags
-                })
+                .flat_map(|d| heat_path_through(theta, |tau| cooled_lag(ctx, d, tau, theta)))
                 .collect()
         }),
         limits,
@@ -1136,8 +1135,8 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 format!("the real recording has no `{AMBIENT}` column"),
             )),
         }
-        match (&ctx.coolant, ctx.switching_coolant()) {
-            (Some(_), Some(_)) => {
+        match ctx.switching_coolant() {
+            Some(_) => {
                 // Coolant removes heat in proportion to how far the part is above the coolant:
                 // an on/off term (coolant below room) and one growing with the excess.
                 out.push(state_dependent(thermal_family(
@@ -1155,11 +1154,11 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     Start::Rest,
                 )));
             }
-            (Some(_), None) => untested.push((
+            None if ctx.coolant.is_some() => untested.push((
                 Physics::Coolant,
                 format!("`{COOLANT}` never changes in the real recording"),
             )),
-            (None, _) => untested.push((
+            None => untested.push((
                 Physics::Coolant,
                 format!("the real recording has no `{COOLANT}` column"),
             )),
