@@ -235,6 +235,8 @@ pub struct Context {
     pub ambient_delta: Option<Vec<f64>>,
     /// `coolant_on` of the real recording.
     pub coolant: Option<Vec<f64>>,
+    /// The real recording's room temperature (`ambient_C`).
+    pub room: Option<Vec<f64>>,
     /// Axes with a speed column, the target's own axis first (only that one when it has one).
     pub axes: Vec<AxisSignals>,
     /// Length of the recording, s.
@@ -531,6 +533,7 @@ impl Context {
             excess,
             ambient_delta,
             coolant,
+            room: real_room,
             axes,
             duration_s,
             step_s,
@@ -1153,6 +1156,79 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     None,
                     Start::Rest,
                 )));
+                // Coolant that cools a motor reaches the parts beside it (a spindle's
+                // bearings, its growth, through the housing) by what it takes from the
+                // winding, in proportion to how far the winding is above the coolant: the
+                // winding's measured excess over the room (the coolant is taken to be near
+                // room temperature). A simulation without the coolant runs the motor far
+                // hotter, so the part's own simulated excess is no measure of it. Not on a
+                // feed axis's screw or nut, at the far end of the screw from its motor.
+                let beside_motor = Site::of(&ctx.target) != Site::Screw;
+                for axis_signals in ctx
+                    .axes
+                    .iter()
+                    .filter(|a| beside_motor && a.stator.is_some())
+                {
+                    let axis = axis_signals.axis;
+                    let stator = axis_column(axis, Quantity::StatorTemp);
+                    if stator == ctx.target {
+                        continue;
+                    }
+                    // The coolant takes heat: the part moves against the way it moves as the
+                    // winding warms — a temperature falls, a growth shrinks whichever way the
+                    // simulation has it grow with the winding's warmth.
+                    let warms_with_winding = match ctx.class {
+                        TargetClass::Temperature => 1.0,
+                        _ => axis_signals.stator.as_deref().map_or(0.0, |stator| {
+                            let (s, w) = (mean(&ctx.sim), mean(stator));
+                            ctx.sim
+                                .iter()
+                                .zip(stator)
+                                .map(|(a, b)| (a - s) * (b - w))
+                                .sum()
+                        }),
+                    };
+                    let cooling = if warms_with_winding > 0.0 {
+                        Some(GainLimit::negative(0))
+                    } else if warms_with_winding < 0.0 {
+                        Some(GainLimit::positive(0))
+                    } else {
+                        None
+                    };
+                    out.push(thermal_family(
+                        Physics::Coolant,
+                        vec![COOLANT.into(), stator],
+                        vec!["tau_s", "lag_ratio"],
+                        thermal_grid(&taus, &[]),
+                        Box::new(move |ctx, _| {
+                            let (Some(c), Some(stator)) = (
+                                ctx.coolant.as_ref(),
+                                ctx.axis(axis).and_then(|a| a.stator.as_ref()),
+                            ) else {
+                                return vec![];
+                            };
+                            // Over the room: the room's swing, which the winding follows
+                            // too, is not the coolant's. Without a room, over the winding's
+                            // first reading, as the target's own excess is.
+                            let first = stator.first().copied().unwrap_or(0.0);
+                            let cs = match &ctx.room {
+                                Some(room) => c
+                                    .iter()
+                                    .zip(stator)
+                                    .zip(room)
+                                    .map(|((c, s), r)| c * (s - r))
+                                    .collect(),
+                                None => {
+                                    c.iter().zip(stator).map(|(c, s)| c * (s - first)).collect()
+                                }
+                            };
+                            vec![cs]
+                        }),
+                        cooling,
+                        Some(axis),
+                        Start::Rest,
+                    ));
+                }
             }
             None if ctx.coolant.is_some() => untested.push((
                 Physics::Coolant,
@@ -1813,8 +1889,16 @@ pub fn explain(
             } else {
                 ("less", "higher")
             };
+            // The member built on a motor's winding says so: the part follows the winding.
+            let through = match family.axis {
+                Some(axis) => format!(
+                    ", through the {axis} motor's winding (`{}`) that it follows",
+                    axis_column(axis, Quantity::StatorTemp)
+                ),
+                None => String::new(),
+            };
             format!(
-                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off)",
+                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated{through}: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off)",
                 average.abs(),
                 extreme.abs(),
                 on_vs_off.abs(),
