@@ -1679,6 +1679,38 @@ fn coolant_tied_with_convection_before_the_refit_is_named_after_it() {
     assert_named_first_and_not(&case, "coolant", "speed_dependent_cooling");
 }
 
+/// Empty sim and real recordings of the heat-balance tests below: time, the spindle's speed,
+/// current and stator temperature, the `parts` after it, the coolant and the room.
+fn spindle_recordings(parts: &[&str]) -> (Recording, Recording) {
+    let mut names: Vec<String> = ["time_s", "S.speed_rpm", "S.current_A", "S.stator_temp_C"]
+        .iter()
+        .chain(parts)
+        .map(|n| n.to_string())
+        .collect();
+    names.extend(["coolant_on".to_string(), "ambient_C".to_string()]);
+    let sim = Recording::new("sim", names.clone()).expect("names");
+    let real = Recording::new("real", names).expect("names");
+    (sim, real)
+}
+
+/// A spindle's next operation (one every 10 minutes in the heat-balance tests below): idle,
+/// or a cut at some speed (rpm) and current (A), with the coolant flowing in `coolant_share`
+/// of the cuts. Returns (speed, current, coolant).
+fn next_operation(rng: &mut impl Rng, coolant_share: f64) -> (f64, f64, f64) {
+    let cutting = rng.random::<f64>() < 0.75;
+    if !cutting {
+        return (0.0, 0.0, 0.0);
+    }
+    let speed = rng.random_range(800.0..6000.0_f64).round();
+    let current = rng.random_range(10.0..60.0);
+    let coolant = if rng.random::<f64>() < coolant_share {
+        1.0
+    } else {
+        0.0
+    };
+    (speed, current, coolant)
+}
+
 /// A spindle whose winding the coolant reaches, written here from its heat balance alone: a
 /// stator of C = 9000 J/K, shedding to the housing through 15 W/K and, while the coolant flows
 /// (in 60 % of the cuts), to the coolant through `coolant_w_per_k` more. The simulation has
@@ -1688,38 +1720,13 @@ fn coolant_tied_with_convection_before_the_refit_is_named_after_it() {
 fn stator_cooled_by_the_coolant(coolant_w_per_k: f64, seed: u64) -> (Recording, Recording, f64) {
     let sigma = 0.05;
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let names = vec![
-        "time_s".to_string(),
-        "S.speed_rpm".into(),
-        "S.current_A".into(),
-        "S.stator_temp_C".into(),
-        "coolant_on".into(),
-        "ambient_C".into(),
-    ];
-    let mut sim = Recording::new("sim", names.clone()).expect("names");
-    let mut real = Recording::new("real", names).expect("names");
+    let (mut sim, mut real) = spindle_recordings(&[]);
     let (capacity, to_housing) = (9000.0, 15.0);
     let (mut simulated, mut rise) = (20.0_f64, 0.0_f64);
     let (mut speed, mut current, mut coolant) = (0.0, 0.0, 0.0);
     for second in 0..5 * 3600 {
         if second % 600 == 0 {
-            // A new operation every 10 minutes: idle, or a cut at some speed and load.
-            let cutting = rng.random::<f64>() < 0.75;
-            speed = if cutting {
-                rng.random_range(800.0..6000.0_f64).round()
-            } else {
-                0.0
-            };
-            current = if cutting {
-                rng.random_range(10.0..60.0)
-            } else {
-                0.0
-            };
-            coolant = if cutting && rng.random::<f64>() < 0.6 {
-                1.0
-            } else {
-                0.0
-            };
+            (speed, current, coolant) = next_operation(&mut rng, 0.6);
         }
         let t = f64::from(second);
         let iron = 8.0 * (speed / 1000.0_f64).powf(1.5);
@@ -1803,17 +1810,7 @@ fn copper_heat_the_coolant_does_not_reach_is_not_charged_to_the_coolant() {
 fn spindle_with_a_cooled_winding(seed: u64) -> (Recording, Recording, f64) {
     let sigma = 0.03;
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let names = vec![
-        "time_s".to_string(),
-        "S.speed_rpm".into(),
-        "S.current_A".into(),
-        "S.stator_temp_C".into(),
-        "ref.S.front_bearing_temp_C".into(),
-        "coolant_on".into(),
-        "ambient_C".into(),
-    ];
-    let mut sim = Recording::new("sim", names.clone()).expect("names");
-    let mut real = Recording::new("real", names).expect("names");
+    let (mut sim, mut real) = spindle_recordings(&["ref.S.front_bearing_temp_C"]);
     let (room, coolant_c) = (20.0, 21.0);
     // (stator, housing, bearing) of the simulation and of the real machine.
     let mut simulated = [room; 3];
@@ -1828,23 +1825,7 @@ fn spindle_with_a_cooled_winding(seed: u64) -> (Recording, Recording, f64) {
     let (mut speed, mut current, mut coolant) = (0.0, 0.0, 0.0);
     for second in 0..6 * 3600 {
         if second % 600 == 0 {
-            // A new operation every 10 minutes: idle, or a cut at some speed and load.
-            let cutting = rng.random::<f64>() < 0.75;
-            speed = if cutting {
-                rng.random_range(800.0..6000.0_f64).round()
-            } else {
-                0.0
-            };
-            current = if cutting {
-                rng.random_range(10.0..60.0)
-            } else {
-                0.0
-            };
-            coolant = if cutting && rng.random::<f64>() < 0.7 {
-                1.0
-            } else {
-                0.0
-            };
+            (speed, current, coolant) = next_operation(&mut rng, 0.7);
         }
         let heat = 8.0 * (speed / 1000.0_f64).powf(1.5) + 0.08 * current * current;
         let drag = 2.0 * (speed / 1000.0_f64).powf(5.0 / 3.0);
