@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use servosight::discrepancy::series::join_or_resume;
 use servosight::discrepancy::{Options, analyse};
 use servosight::signal::read_recording;
 use servosight::ui::export_png::render_discrepancy;
@@ -88,12 +89,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (sim, real) = std::thread::scope(|scope| {
         let sim = scope.spawn(|| read_recording(&args.sim));
         let real = read_recording(&args.real);
-        (sim.join(), real)
+        (join_or_resume(sim), real)
     });
-    let sim = match sim {
-        Ok(read) => read.context("cannot read the simulation")?,
-        Err(panic) => std::panic::resume_unwind(panic),
-    };
+    let sim = sim.context("cannot read the simulation")?;
     let real = real.context("cannot read the real recording")?;
     let options = Options {
         surrogates: args.surrogates,

@@ -1164,16 +1164,14 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 // hotter, so the part's own simulated excess is no measure of it. Not on a
                 // feed axis's screw or nut, at the far end of the screw from its motor.
                 let beside_motor = Site::of(&ctx.target) != Site::Screw;
+                let winding = |a: &AxisSignals| axis_column(a.axis, Quantity::StatorTemp);
                 for axis_signals in ctx
                     .axes
                     .iter()
-                    .filter(|a| beside_motor && a.stator.is_some())
+                    .filter(|a| beside_motor && a.stator.is_some() && winding(a) != ctx.target)
                 {
                     let axis = axis_signals.axis;
-                    let stator = axis_column(axis, Quantity::StatorTemp);
-                    if stator == ctx.target {
-                        continue;
-                    }
+                    let stator = winding(axis_signals);
                     // The coolant takes heat: the part moves against the way it moves as the
                     // winding warms — a temperature falls, a growth shrinks whichever way the
                     // simulation has it grow with the winding's warmth.

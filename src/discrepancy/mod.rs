@@ -703,10 +703,7 @@ fn analyse_watched(
         let correlation =
             scope.spawn(|| integrated_autocorrelation(&cv_residual, (n / 10).clamp(2, 20_000)));
         let located = localise::localise(&ctx.time, &mismatch, &cv_residual, &conditions);
-        match correlation.join() {
-            Ok(samples) => (located, samples),
-            Err(panic) => std::panic::resume_unwind(panic),
-        }
+        (located, series::join_or_resume(correlation))
     });
     let noise_floor = NoiseFloor {
         rms: series::rms(&cv_residual),

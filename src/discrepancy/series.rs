@@ -389,13 +389,15 @@ pub fn worker_threads(tasks: usize) -> usize {
 
 /// Every scoped thread's results, thread after thread; a thread's panic is raised again here.
 pub fn joined<R>(handles: Vec<std::thread::ScopedJoinHandle<'_, Vec<R>>>) -> Vec<R> {
-    handles
-        .into_iter()
-        .flat_map(|h| match h.join() {
-            Ok(results) => results,
-            Err(panic) => std::panic::resume_unwind(panic),
-        })
-        .collect()
+    handles.into_iter().flat_map(join_or_resume).collect()
+}
+
+/// A scoped thread's result; its panic is raised again here, as if it had run on this thread.
+pub fn join_or_resume<T>(handle: std::thread::ScopedJoinHandle<'_, T>) -> T {
+    match handle.join() {
+        Ok(result) => result,
+        Err(panic) => std::panic::resume_unwind(panic),
+    }
 }
 
 /// Arithmetic mean (0 for an empty slice).
