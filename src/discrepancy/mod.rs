@@ -469,8 +469,16 @@ fn analyse_watched(
         .any(|((family, _), active)| *active && families[*family].refinement.is_some())
     {
         watch.report(REFIT_AT, || "refining the corrections' forms".into())?;
+        // The refit chooses every correction again, one at a time, and may settle where the
+        // model as a whole predicts worse than before it: the refined forms are kept only
+        // where the held-out blocks say the model is better with them.
+        let before = joint.clone();
         joint.refinements = true;
         joint.refit_jointly();
+        let error = |j: &Joint<'_>| j.held_out_error(&j.state_context(), None, None);
+        if error(&joint) >= error(&before) {
+            joint = before;
+        }
     }
     watch.report(REFIT_AT, || "refitting on all rows".into())?;
     let state_ctx = joint.state_context();
@@ -1134,21 +1142,11 @@ impl Joint<'_> {
             return false;
         }
         let state_ctx = self.state_context();
-        let ones = vec![1.0; self.y.len()];
         // Judged in both views of the selection: a fast correction that slow correlated noise
         // hides in the data as they are still counts where the high-pass shows it.
         let y_high = select::highpass(self.y, self.highpass_window);
         let cv = |skip: Option<usize>, high: bool| -> f64 {
-            let mut columns = vec![ones.clone()];
-            columns.extend(self.columns(&state_ctx, skip).into_iter().map(|c| {
-                if high {
-                    select::highpass(&c, self.highpass_window)
-                } else {
-                    c
-                }
-            }));
-            let refs: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
-            held_out_sse(&refs, if high { &y_high } else { self.y }, self.blocks)
+            self.held_out_error(&state_ctx, skip, high.then_some(y_high.as_slice()))
         };
         let cost_in = |k: usize, high: bool, all: f64| -> f64 {
             let without = cv(Some(k), high);
@@ -1175,6 +1173,27 @@ impl Joint<'_> {
             }
             _ => false,
         }
+    }
+
+    /// The held-out squared error of the joint model on the binned rows: the intercept and
+    /// every active correction but `skip`, in the data as they are or, given the high-passed
+    /// target `y_high`, in the high-passed view.
+    fn held_out_error(
+        &self,
+        state_ctx: &Context,
+        skip: Option<usize>,
+        y_high: Option<&[f64]>,
+    ) -> f64 {
+        let mut columns = vec![vec![1.0; self.y.len()]];
+        columns.extend(self.columns(state_ctx, skip).into_iter().map(|c| {
+            if y_high.is_some() {
+                select::highpass(&c, self.highpass_window)
+            } else {
+                c
+            }
+        }));
+        let refs: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
+        held_out_sse(&refs, y_high.unwrap_or(self.y), self.blocks)
     }
 
     /// How the member `theta` of `family` fits beside `others` (the intercept first) in the
