@@ -470,13 +470,15 @@ fn analyse_watched(
     {
         watch.report(REFIT_AT, || "refining the corrections' forms".into())?;
         // The refit chooses every correction again, one at a time, and may settle where the
-        // model as a whole predicts worse than before it: the refined forms are kept only
-        // where the held-out blocks say the model is better with them.
+        // model as a whole predicts worse than before it, or where a correction breaks its
+        // physics' limits (a time constant refined past them): the refined forms are kept
+        // only within the limits and where the held-out blocks say the model is better.
         let before = joint.clone();
         joint.refinements = true;
         joint.refit_jointly();
+        let withdrawn = joint.keep_within_limits(joint.stateful());
         let error = |j: &Joint<'_>| j.held_out_error(&j.state_context(), None, None);
-        if error(&joint) >= error(&before) {
+        if withdrawn || error(&joint) >= error(&before) {
             joint = before;
         }
     }
