@@ -118,6 +118,10 @@ def against_physics(report, target):
         p, kind = f["parameters"], f["physics"]
         if temperature and kind == "ambient_temperature" and not 0 < p["gain_per_K"] <= 1.05:
             broken.append(f"room gain {p['gain_per_K']:.4f} K/K")
+        flowing = p.get("gain_per_K_while_coolant_flows")
+        if temperature and kind == "ambient_temperature" and flowing is not None \
+                and not 0 < flowing <= 1.05:
+            broken.append(f"room gain while the coolant flows {flowing:.4f} K/K")
         if temperature and kind == "copper_loss" and p["per_A2"] <= 0:
             broken.append(f"I²R heating {p['per_A2']:.3g} °C/A²")
         if (temperature and kind == "speed_dependent_cooling" and "simulated_at_rpm" not in p

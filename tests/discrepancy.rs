@@ -1595,6 +1595,10 @@ fn corrections_stay_within_their_physics_in_the_joint_fit() {
                 "ambient_temperature" => {
                     let gain = p["gain_per_K"];
                     assert!(gain > 0.0 && gain <= 1.05, "{}", report.summary());
+                    // And while the coolant flows, where the fit tells the two apart.
+                    if let Some(&flowing) = p.get("gain_per_K_while_coolant_flows") {
+                        assert!(flowing > 0.0 && flowing <= 1.05, "{}", report.summary());
+                    }
                 }
                 "speed_dependent_cooling" => {
                     let change = p["relative_change_at_1000rpm"];
