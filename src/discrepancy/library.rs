@@ -960,21 +960,39 @@ fn cooled_lag(ctx: &Context, driver: &[f64], tau: f64, theta: &[f64], start: Sta
     }
 }
 
-/// The coolant speed-ups a family's members are built with (0 alone, or with
-/// [`COOLANT_SPEEDUPS`] where the coolant both flows and stops, when `coolant_on` is added to
-/// `signals`) and the family's [`Family::refinement`] on them (the speed-up is the members'
-/// second parameter).
-fn coolant_refinement(
+/// A thermal family whose members (τ, coolant speed-up, lag ratio) are built by `build`,
+/// with the speed-up 0 alone or, where the coolant both flows and stops, also
+/// [`COOLANT_SPEEDUPS`] as the family's [`Family::refinement`] on `coolant_on`: the members
+/// whose lags run faster while it flows ([`cooled_lag`]), offered only to the refit after
+/// the selection.
+fn coolant_refined_family(
     ctx: &Context,
-    signals: &mut Vec<String>,
-) -> (Vec<f64>, Option<(usize, usize)>) {
-    if ctx.switching_coolant().is_none() {
-        return (vec![0.0], None);
-    }
-    signals.push(COOLANT.into());
+    kind: Physics,
+    mut signals: Vec<String>,
+    taus: &[f64],
+    build: Builder,
+    limits: Vec<GainLimit>,
+    axis: Option<AxisId>,
+) -> Family {
     let mut speedups = vec![0.0];
-    speedups.extend(COOLANT_SPEEDUPS);
-    (speedups, Some((signals.len() - 1, 1)))
+    let refinement = ctx.switching_coolant().map(|_| {
+        signals.push(COOLANT.into());
+        speedups.extend(COOLANT_SPEEDUPS);
+        (signals.len() - 1, 1)
+    });
+    Family {
+        kind: Kind::Physics(kind),
+        signals,
+        theta_names: vec!["tau_s", "coolant_speedup", "lag_ratio"],
+        grid: thermal_grid(taus, &speedups),
+        refine: Some(Refine { log: true }),
+        build,
+        limits,
+        axis,
+        lagged: true,
+        state: false,
+        refinement,
+    }
 }
 
 /// A heat source: its heat row by row, and the factors by which its extra warmth in the part
@@ -1002,20 +1020,18 @@ type HeatSource = Box<dyn Fn(&Context) -> Option<(Vec<f64>, Vec<Vec<f64>>)> + Se
 fn heat_source_family(
     ctx: &Context,
     kind: Physics,
-    mut signals: Vec<String>,
+    signals: Vec<String>,
     taus: &[f64],
     source: HeatSource,
     limits: Vec<GainLimit>,
     axis: AxisId,
 ) -> Family {
-    let (speedups, refinement) = coolant_refinement(ctx, &mut signals);
-    Family {
-        kind: Kind::Physics(kind),
+    coolant_refined_family(
+        ctx,
+        kind,
         signals,
-        theta_names: vec!["tau_s", "coolant_speedup", "lag_ratio"],
-        grid: thermal_grid(taus, &speedups),
-        refine: Some(Refine { log: true }),
-        build: Box::new(move |ctx, theta| {
+        taus,
+        Box::new(move |ctx, theta| {
             let Some((heat, factors)) = source(ctx) else {
                 return vec![];
             };
@@ -1040,11 +1056,8 @@ fn heat_source_family(
                 .collect()
         }),
         limits,
-        axis: Some(axis),
-        lagged: true,
-        state: false,
-        refinement,
-    }
+        Some(axis),
+    )
 }
 
 /// Thermal inertia: the simulated target as the real part would follow it with another heat
@@ -1059,26 +1072,20 @@ fn heat_source_family(
 /// the lags that ignore the coolant left 2.2–5.6 σ held out, the switched ones 1.6–2.8 σ
 /// (docs/discrepancy.md).
 fn thermal_inertia_family(ctx: &Context, simulated: String, taus: &[f64]) -> Family {
-    let mut signals = vec![simulated];
-    let (speedups, refinement) = coolant_refinement(ctx, &mut signals);
-    Family {
-        kind: Kind::Physics(Physics::ThermalInertia),
-        signals,
-        theta_names: vec!["tau_s", "coolant_speedup", "lag_ratio"],
-        grid: thermal_grid(taus, &speedups),
-        refine: Some(Refine { log: true }),
-        build: Box::new(|ctx, theta| {
+    coolant_refined_family(
+        ctx,
+        Physics::ThermalInertia,
+        vec![simulated],
+        taus,
+        Box::new(|ctx, theta| {
             heat_path_through(theta, |tau| capacity_lag(ctx, tau, theta))
                 .into_iter()
                 .map(|lagged| lagged.iter().zip(&ctx.sim).map(|(l, s)| l - s).collect())
                 .collect()
         }),
-        limits: Vec::new(),
-        axis: None,
-        lagged: true,
-        state: false,
-        refinement,
-    }
+        Vec::new(),
+        None,
+    )
 }
 
 /// The room: how far the real room is from the simulated one, through fitted lags that start
@@ -1094,15 +1101,12 @@ fn thermal_inertia_family(ctx: &Context, simulated: String, taus: &[f64]) -> Fam
 /// part following the room. On the independent check's nut they took the room's held-out
 /// error from 1.1–6.4 σ to 0.9–2.0 σ (docs/discrepancy.md).
 fn room_family(ctx: &Context, taus: &[f64], temperature: bool) -> Family {
-    let mut signals = vec![AMBIENT.to_string()];
-    let (speedups, refinement) = coolant_refinement(ctx, &mut signals);
-    Family {
-        kind: Kind::Physics(Physics::AmbientTemperature),
-        signals,
-        theta_names: vec!["tau_s", "coolant_speedup", "lag_ratio"],
-        grid: thermal_grid(taus, &speedups),
-        refine: Some(Refine { log: true }),
-        build: Box::new(|ctx, theta| {
+    coolant_refined_family(
+        ctx,
+        Physics::AmbientTemperature,
+        vec![AMBIENT.to_string()],
+        taus,
+        Box::new(|ctx, theta| {
             let Some(delta) = ctx.ambient_delta.as_deref() else {
                 return Vec::new();
             };
@@ -1132,7 +1136,7 @@ fn room_family(ctx: &Context, taus: &[f64], temperature: bool) -> Family {
         }),
         // A part whose surroundings all follow the room ends up following it one to one: its
         // steady-state gain to the room lies between 0 and 1, with the coolant off or flowing.
-        limits: if temperature {
+        if temperature {
             (0..2)
                 .map(|driver| GainLimit {
                     driver,
@@ -1143,11 +1147,8 @@ fn room_family(ctx: &Context, taus: &[f64], temperature: bool) -> Family {
         } else {
             Vec::new()
         },
-        axis: None,
-        lagged: true,
-        state: false,
-        refinement,
-    }
+        None,
+    )
 }
 
 /// The simulated target T through a lag of time constant `tau` that starts where the
