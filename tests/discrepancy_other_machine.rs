@@ -483,3 +483,47 @@ fn the_room_on_a_nut_the_coolant_cools_is_named_and_fitted() {
     let following = parameter("gain_per_K_while_coolant_flows") / parameter("gain_per_K");
     assert!((0.9..1.1).contains(&following), "{room}");
 }
+
+/// Coolant at room temperature left out of a simulation of a nut that it cools in most cuts,
+/// while the air cools the nut faster the faster it travels (forced convection, 1 + (n /
+/// 150 rpm)^0.8 times its still-air conductance, in both runs): the heat the coolant takes
+/// leaves the nut up to 3.2 × as fast at its top feed as at rest, so the lag through which the
+/// correction acts must speed up with the feed too: 1.01 σ held out, where a lag of one rate
+/// leaves 1.56 σ.
+#[test]
+fn coolant_on_a_nut_the_air_cools_faster_at_speed_is_named_and_fitted() {
+    let convected = Physics {
+        nut_convection: Convection::GrowingWithSpeed,
+        ..REAL
+    };
+    let sim = feed_axis_csv(
+        37,
+        Physics {
+            noisy: false,
+            ..convected
+        },
+    );
+    let real = feed_axis_csv(
+        37,
+        Physics {
+            nut_coolant: true,
+            ..convected
+        },
+    );
+    let report = compare(&sim, &real, "ref.X.nut_temp_C");
+    assert_named_first(&report, "coolant");
+    // Held out within 1.2 × the thermometer's noise (0.03 °C).
+    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
+    assert!(rmse < 1.2 * 0.03, "held-out RMSE {rmse} °C");
+    let coolant = &report["findings"][0];
+    let speedup = coolant["parameters"]["convection_speedup"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no convection speed-up in {coolant}"));
+    assert!(speedup > 0.0, "{coolant}");
+    assert!(
+        coolant["explanation"]
+            .as_str()
+            .is_some_and(|e| e.contains("`X.speed_rpm`")),
+        "{coolant}"
+    );
+}

@@ -132,10 +132,17 @@ fn switched_regular(values: &[f64], step_tau: f64, switch: &[f64], speedup: f64)
             std::array::from_fn(|_| decays.next().map_or(&mut [][..], |d| d));
         let mut state = [0.0; LAG_SEGMENTS];
         let mut product = [1.0; LAG_SEGMENTS];
+        // A switch between 0 and 1 (a speed's share of its top) costs an exponential: each
+        // stretch keeps the coefficients of its last value, which a speed holds for minutes.
+        let mut last = [(f64::NAN, (0.0, 0.0)); LAG_SEGMENTS];
         for j in 0..len {
             for s in 0..LAG_SEGMENTS {
                 let row = s * len + j;
-                let (keep, gain) = coefficients(switches[row]);
+                let switch = switches[row];
+                if switch != last[s].0 {
+                    last[s] = (switch, coefficients(switch));
+                }
+                let (keep, gain) = last[s].1;
                 state[s] = keep * state[s] + gain * inputs[row];
                 product[s] *= keep;
                 outputs[s][j] = state[s];
