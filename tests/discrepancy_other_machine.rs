@@ -25,9 +25,11 @@ struct Physics {
     current_offset_drift: (f64, f64),
     /// How the nut sheds heat to the air.
     nut_convection: Convection,
-    /// Coolant at room temperature flows over the nut in most cuts (1.0 W/K while it flows),
-    /// and the recording has its `coolant_on` column.
+    /// Coolant flows over the nut in most cuts (1.0 W/K while it flows), and the recording
+    /// has its `coolant_on` column.
     nut_coolant: bool,
+    /// The coolant's temperature when a chiller holds it (°C); `None`: at room temperature.
+    coolant_held_c: Option<f64>,
     /// The nut's heat capacity as a multiple of 1200 J/K.
     nut_capacity_scale: f64,
     /// The room's daily swing (K): 21 °C + swing · sin(2π t / 24 h). A simulation without a
@@ -132,8 +134,10 @@ fn feed_axis_csv(seed: u64, physics: Physics) -> String {
         };
         let friction_heat = 0.2 * friction_nm * feed_rpm * std::f64::consts::PI / 30.0;
         let coolant_w_per_k = if coolant_flows { 1.0 } else { 0.0 };
+        let coolant_c = physics.coolant_held_c.unwrap_or(room);
         nut += (friction_heat
-            - (physics.nut_convection.conductance(speed) + coolant_w_per_k) * (nut - room))
+            - physics.nut_convection.conductance(speed) * (nut - room)
+            - coolant_w_per_k * (nut - coolant_c))
             / (1200.0 * physics.nut_capacity_scale);
         let mut sample = |sigma: &Normal<f64>| {
             if physics.noisy {
@@ -223,6 +227,7 @@ const REAL: Physics = Physics {
     current_offset_drift: (0.0, 0.0),
     nut_convection: Convection::StillAir,
     nut_coolant: false,
+    coolant_held_c: None,
     nut_capacity_scale: 1.0,
     room_swing_k: 1.0,
 };
@@ -524,6 +529,51 @@ fn coolant_on_a_nut_the_air_cools_faster_at_speed_is_named_and_fitted() {
         coolant["explanation"]
             .as_str()
             .is_some_and(|e| e.contains("`X.speed_rpm`")),
+        "{coolant}"
+    );
+}
+
+/// Coolant held at 21 °C by a chiller, left out of a simulation of a nut it cools in most cuts
+/// while the room swings by 3 K a day (in both runs): the coolant takes more heat from the nut
+/// as the room, and the nut with it, warms above the coolant. A coolant that followed the room
+/// would take the same at any room temperature, so the coolant is found held at its own
+/// temperature, near the chiller's setpoint: 1.0 σ held out, where coolant taken to follow
+/// the room leaves 4.8 σ.
+#[test]
+fn coolant_a_chiller_holds_is_named_with_its_temperature() {
+    let swinging = Physics {
+        room_swing_k: 3.0,
+        ..REAL
+    };
+    let sim = feed_axis_csv(
+        41,
+        Physics {
+            noisy: false,
+            ..swinging
+        },
+    );
+    let real = feed_axis_csv(
+        41,
+        Physics {
+            nut_coolant: true,
+            coolant_held_c: Some(21.0),
+            ..swinging
+        },
+    );
+    let report = compare(&sim, &real, "ref.X.nut_temp_C");
+    assert_named_first(&report, "coolant");
+    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
+    // Held out within 1.2 × the thermometer's noise (0.03 °C).
+    assert!(rmse < 1.2 * 0.03, "held-out RMSE {rmse} °C");
+    let coolant = &report["findings"][0];
+    let held_at = coolant["parameters"]["coolant_temperature_C"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no coolant temperature in {coolant}"));
+    assert!((held_at - 21.0).abs() < 0.5, "{coolant}");
+    assert!(
+        coolant["explanation"]
+            .as_str()
+            .is_some_and(|e| e.contains("not following the room")),
         "{coolant}"
     );
 }

@@ -311,12 +311,20 @@ pub struct Family {
     /// the corrected simulation (see [`Context::with_state`]) so that, e.g., extra cooling
     /// acts on the temperature the part really has, not on the simulated one.
     pub state: bool,
-    /// A refinement of the family's members that only the refit after the selection offers,
-    /// as `(signal, theta)`: the members whose nonlinear parameter at index `theta` is
-    /// positive, which also use `signals[signal]`. The selection does not see them: members
-    /// more flexible than the physics needs to be named fit the surrogates' slow waves too,
-    /// and would raise the null that every correction is tested against.
-    pub refinement: Option<(usize, usize)>,
+    /// Refinements of the family's members that only the refit after the selection offers.
+    /// The selection does not see them: members more flexible than the physics needs to be
+    /// named fit the surrogates' slow waves too, and would raise the null that every
+    /// correction is tested against.
+    pub refinements: Vec<Refinement>,
+}
+
+/// One way a family's members may be refined ([`Family::refinements`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Refinement {
+    /// The nonlinear parameter that is positive in the refined members.
+    pub theta: usize,
+    /// The signal the refined members also use, an index into [`Family::signals`].
+    pub signal: Option<usize>,
 }
 
 /// Limits on one driver's steady-state gain: `min < gain ≤ max`.
@@ -362,12 +370,18 @@ pub struct Refine {
     pub log: bool,
 }
 
+impl Refinement {
+    /// Whether the member with nonlinear parameters `theta` uses this refinement.
+    pub fn used_by(&self, theta: &[f64]) -> bool {
+        theta.get(self.theta).is_some_and(|v| *v > 0.0)
+    }
+}
+
 impl Family {
-    /// Whether the member with nonlinear parameters `theta` is one of the family's
-    /// [`Family::refinement`]s.
+    /// Whether the member with nonlinear parameters `theta` uses any of the family's
+    /// [`Family::refinements`].
     pub fn uses_refinement(&self, theta: &[f64]) -> bool {
-        self.refinement
-            .is_some_and(|(_, switch)| theta.get(switch).is_some_and(|v| *v > 0.0))
+        self.refinements.iter().any(|r| r.used_by(theta))
     }
 
     /// Whether the selection is offered the member with nonlinear parameters `theta`: not a
@@ -378,18 +392,21 @@ impl Family {
             && (!self.lagged || self.lags(theta).iter().all(|lag| *lag <= longest_lag_s))
     }
 
-    /// The signals the member with nonlinear parameters `theta` is built from.
+    /// The signals the member with nonlinear parameters `theta` is built from: not those of
+    /// a refinement it does not use.
     pub fn member_signals(&self, theta: &[f64]) -> Vec<String> {
-        match self.refinement {
-            Some((signal, _)) if !self.uses_refinement(theta) => self
-                .signals
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| *k != signal)
-                .map(|(_, name)| name.clone())
-                .collect(),
-            _ => self.signals.clone(),
-        }
+        let unused: Vec<usize> = self
+            .refinements
+            .iter()
+            .filter(|r| !r.used_by(theta))
+            .filter_map(|r| r.signal)
+            .collect();
+        self.signals
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !unused.contains(k))
+            .map(|(_, name)| name.clone())
+            .collect()
     }
 
     /// The columns of driver `driver` for a member with nonlinear parameters `theta`.
@@ -898,7 +915,7 @@ fn thermal_family(
         axis,
         lagged: true,
         state: false,
-        refinement: None,
+        refinements: Vec::new(),
     }
 }
 
@@ -920,12 +937,15 @@ fn member_coolant<'c>(ctx: &'c Context, theta: &[f64]) -> Option<(&'c [f64], f64
 }
 
 /// The coolant speed-up of a member of a [`heat_source_family`] when it uses the coolant
-/// ([`Family::refinement`] on `coolant_on`), read from the family alone.
+/// (a refinement on `coolant_on`, [`Family::refinements`]), read from the family alone.
 fn coolant_speedup_of(family: &Family, theta: &[f64]) -> Option<f64> {
-    let (signal, switch) = family.refinement?;
-    let on_coolant = family.signals.get(signal).is_some_and(|s| s == COOLANT);
-    let speedup = theta.get(switch).copied().filter(|s| *s > 0.0)?;
-    on_coolant.then_some(speedup)
+    let on_coolant = |r: &&Refinement| {
+        r.signal
+            .and_then(|k| family.signals.get(k))
+            .is_some_and(|s| s == COOLANT)
+    };
+    let refinement = family.refinements.iter().find(on_coolant)?;
+    theta.get(refinement.theta).copied().filter(|s| *s > 0.0)
 }
 
 /// What a driver has added to the part by each row, through a lag of time constant `tau`
@@ -962,7 +982,7 @@ fn cooled_lag(ctx: &Context, driver: &[f64], tau: f64, theta: &[f64], start: Sta
 
 /// A thermal family whose members (τ, coolant speed-up, lag ratio) are built by `build`,
 /// with the speed-up 0 alone or, where the coolant both flows and stops, also
-/// [`COOLANT_SPEEDUPS`] as the family's [`Family::refinement`] on `coolant_on`: the members
+/// [`COOLANT_SPEEDUPS`] as the family's [`Family::refinements`] on `coolant_on`: the members
 /// whose lags run faster while it flows ([`cooled_lag`]), offered only to the refit after
 /// the selection.
 fn coolant_refined_family(
@@ -975,11 +995,18 @@ fn coolant_refined_family(
     axis: Option<AxisId>,
 ) -> Family {
     let mut speedups = vec![0.0];
-    let refinement = ctx.switching_coolant().map(|_| {
-        signals.push(COOLANT.into());
-        speedups.extend(COOLANT_SPEEDUPS);
-        (signals.len() - 1, 1)
-    });
+    let refinements = ctx
+        .switching_coolant()
+        .map(|_| {
+            signals.push(COOLANT.into());
+            speedups.extend(COOLANT_SPEEDUPS);
+            Refinement {
+                theta: 1,
+                signal: Some(signals.len() - 1),
+            }
+        })
+        .into_iter()
+        .collect();
     Family {
         kind: Kind::Physics(kind),
         signals,
@@ -991,7 +1018,7 @@ fn coolant_refined_family(
         axis,
         lagged: true,
         state: false,
-        refinement,
+        refinements,
     }
 }
 
@@ -1006,7 +1033,7 @@ type HeatSource = Box<dyn Fn(&Context) -> Option<(Vec<f64>, Vec<Vec<f64>>)> + Se
 /// every member is offered again with lags that run faster while it flows
 /// ([`COOLANT_SPEEDUPS`]) and a feedback driver, the coolant times the member's warmth: how
 /// fast a part sheds its heat switches with the coolant, and a heat path with one rate fits
-/// neither half. These are the family's [`Family::refinement`]: the physics is named with
+/// neither half. These are the family's [`Family::refinements`]: the physics is named with
 /// the members that ignore the coolant, and the refit after the selection chooses among all
 /// of them, so a part the coolant does not reach is not charged for terms it cannot use. Offered to the
 /// selection too, they named the copper heat on the front bearing where it named coolant
@@ -1067,7 +1094,7 @@ fn heat_source_family(
 /// Where the coolant both flows and stops, the part's own time constant is shorter while it
 /// flows, and so is the lag: every member is offered again with a lag that runs faster by
 /// the coolant speed-ups of a heat source ([`COOLANT_SPEEDUPS`]) towards the same T, as the
-/// family's [`Family::refinement`] (the refit after the selection chooses among them). On
+/// family's [`Family::refinements`] (the refit after the selection chooses among them). On
 /// the independent check's nut (coolant 0.5 W/K beside 0.6 W/K to the room, speed-up 0.83)
 /// the lags that ignore the coolant left 2.2–5.6 σ held out, the switched ones 1.6–2.8 σ
 /// (docs/discrepancy.md).
@@ -1091,7 +1118,7 @@ fn thermal_inertia_family(ctx: &Context, simulated: String, taus: &[f64]) -> Fam
 /// The room: how far the real room is from the simulated one, through fitted lags that start
 /// settled (the machine has stood in its room long before any recording). A part the coolant
 /// cools while it flows sheds heat faster then: the members whose lags run faster while it
-/// flows are the family's [`Family::refinement`], as for a heat source. How far the part
+/// flows are the family's [`Family::refinements`], as for a heat source. How far the part
 /// then follows the room depends on the coolant's own temperature: held by a chiller, the
 /// coolant pulls the part towards it and away from the room (0.5 W/K beside 0.6 W/K to the
 /// room on the independent check's nut: 55 % as far); following the room itself, it takes
@@ -1161,6 +1188,12 @@ fn room_family(ctx: &Context, taus: &[f64], temperature: bool) -> Family {
 /// noise; with the rate growing with speed, 0.19–0.23 °C.
 const CONVECTION_SPEEDUPS: [f64; 3] = [0.5, 1.0, 2.0];
 
+/// Where [`coolant_on_the_part_family`]'s members keep their convection speed-up.
+const CONVECTION_SPEEDUP: usize = 1;
+/// Where they keep whether their coolant is held at its own temperature (positive) or
+/// follows the room (0).
+const COOLANT_HELD: usize = 2;
+
 /// The speed of the axis `target` belongs to as forced convection sees it: (|n| / n_fast)^0.8
 /// ([`CONVECTION_SPEEDUPS`]), with its column's name and n_fast (rpm); `None` for a target of
 /// no axis in the recording or an axis that never runs.
@@ -1181,29 +1214,63 @@ fn convection_of_target(ctx: &Context) -> Option<(String, f64, Vec<f64>)> {
 
 /// Coolant that removes heat from the part itself, in proportion to how far the part is above
 /// the coolant: an on/off term (coolant below room) and one growing with the part's excess,
-/// built on the part's own state. Where the part's axis runs at changing speeds, the
-/// members whose first lag runs faster at speed ([`CONVECTION_SPEEDUPS`]) are the family's
-/// [`Family::refinement`] on that speed, offered only to the refit after the selection.
+/// built on the part's own state. Two refinements ([`Family::refinements`]), offered only to
+/// the refit after the selection:
+/// - where the part's axis runs at changing speeds, a first lag that runs faster at speed
+///   ([`CONVECTION_SPEEDUPS`]);
+/// - on a temperature with a room column, coolant held at a temperature of its own (a
+///   chiller's setpoint) rather than following the room: the second term grows with the part's
+///   temperature over the room's mean, not over the room. As the room warms, a held coolant
+///   takes more heat from a part that warms with it, where one that follows the room would
+///   take the same: on the independent check's stator (coolant
+///   held at 21 °C, the room swinging 2.4–3.7 K) the two refinements together left
+///   0.03–0.14 °C without noise, the faster lag alone 0.19–0.23 °C.
 fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) -> Family {
+    // theta: [τ, convection speed-up, held (0 or 1), lag ratio].
     let convection = convection_of_target(ctx);
     let mut signals = vec![COOLANT.to_string(), simulated];
     let mut speedups = vec![0.0];
-    let refinement = convection.as_ref().map(|(speed, _, _)| {
+    let mut refinements = Vec::new();
+    if let Some((speed, _, _)) = &convection {
         signals.push(speed.clone());
         speedups.extend(CONVECTION_SPEEDUPS);
-        (signals.len() - 1, 1)
-    });
+        refinements.push(Refinement {
+            theta: CONVECTION_SPEEDUP,
+            signal: Some(signals.len() - 1),
+        });
+    }
+    let held_reference = held_coolant_reference(ctx);
+    let helds: &[f64] = if held_reference.is_some() {
+        refinements.push(Refinement {
+            theta: COOLANT_HELD,
+            signal: None,
+        });
+        &[0.0, 1.0]
+    } else {
+        &[0.0]
+    };
+    let grid = thermal_grid(taus, &speedups)
+        .into_iter()
+        .flat_map(|m| helds.iter().map(move |&held| vec![m[0], m[1], held, m[2]]))
+        .collect();
     let convection = convection.map(|(_, _, share)| Arc::new(share));
     Family {
         kind: Kind::Physics(Physics::Coolant),
         signals,
-        theta_names: vec!["tau_s", "convection_speedup", "lag_ratio"],
-        grid: thermal_grid(taus, &speedups),
+        theta_names: vec!["tau_s", "convection_speedup", "coolant_held", "lag_ratio"],
+        grid,
         refine: Some(Refine { log: true }),
         build: Box::new(move |ctx, theta| {
             let c = ctx.coolant.clone().unwrap_or_default();
-            let ce: Vec<f64> = c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect();
-            let speedup = theta[1];
+            let ce: Vec<f64> = match held_reference {
+                Some(reference) if theta[COOLANT_HELD] > 0.0 => c
+                    .iter()
+                    .zip(&ctx.sim)
+                    .map(|(c, t)| c * (t - reference))
+                    .collect(),
+                _ => c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect(),
+            };
+            let speedup = theta[CONVECTION_SPEEDUP];
             [c, ce]
                 .iter()
                 .flat_map(|driver| {
@@ -1230,8 +1297,17 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
         axis: None,
         lagged: true,
         state: true,
-        refinement,
+        refinements,
     }
+}
+
+/// The temperature a held coolant's term measures the part from: the real room's mean, on a
+/// temperature target with a room column that moves (elsewhere a held coolant and one that
+/// follows the room are the same term).
+fn held_coolant_reference(ctx: &Context) -> Option<f64> {
+    let room = ctx.room.as_deref()?;
+    let (lo, hi) = (quantile(room, 0.01), quantile(room, 0.99));
+    (ctx.class == TargetClass::Temperature && hi - lo > 0.0).then(|| mean(room))
 }
 
 /// The simulated target T through a lag of time constant `tau` that starts where the
@@ -1287,7 +1363,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         axis: None,
         lagged: false,
         state: false,
-        refinement: None,
+        refinements: Vec::new(),
     });
     out.push(thermal_inertia_family(ctx, simulated.clone(), &taus));
     out.push(Family {
@@ -1304,7 +1380,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         axis: None,
         lagged: false,
         state: false,
-        refinement: None,
+        refinements: Vec::new(),
     });
     out.push(Family {
         kind: Kind::Physics(Physics::SensorOffsetDrift),
@@ -1328,7 +1404,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         axis: None,
         lagged: false,
         state: false,
-        refinement: None,
+        refinements: Vec::new(),
     });
 
     if thermal {
@@ -1800,7 +1876,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     axis: Some(axis),
                     lagged: false,
                     state: false,
-                    refinement: None,
+                    refinements: Vec::new(),
                 });
             }
             if axis_signals.position.is_some() {
@@ -1836,7 +1912,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     axis: Some(axis),
                     lagged: false,
                     state: false,
-                    refinement: None,
+                    refinements: Vec::new(),
                 });
             }
             if axis_signals.stator.is_some() {
@@ -1884,7 +1960,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     axis: Some(axis),
                     lagged: false,
                     state: false,
-                    refinement: None,
+                    refinements: Vec::new(),
                 });
             }
         }
@@ -2106,10 +2182,16 @@ pub fn explain(
                 ),
                 None => String::new(),
             };
-            // A member whose first lag runs faster at speed ([`coolant_on_the_part_family`]).
-            let convection = match convection_of_target(ctx) {
-                Some((speed, fast, _)) if family.uses_refinement(theta) => {
-                    let speedup = theta[1];
+            // The refinements of the coolant on the part itself ([`coolant_on_the_part_family`]).
+            let refined = |index: usize| {
+                family
+                    .refinements
+                    .iter()
+                    .find(|r| r.theta == index && r.used_by(theta))
+                    .map(|r| theta[r.theta])
+            };
+            let convection = match (convection_of_target(ctx), refined(CONVECTION_SPEEDUP)) {
+                (Some((speed, fast, _)), Some(speedup)) => {
                     p.insert("convection_speedup".into(), speedup);
                     format!(
                         "; the part sheds it {:.1} × as fast at {fast:.0} rpm (`{speed}`) as at rest",
@@ -2118,8 +2200,25 @@ pub fn explain(
                 }
                 _ => String::new(),
             };
+            // Held coolant: g0·c + g1·c·(T − T̄room) = g1·c·(T − (T̄room − g0/g1)).
+            let held = match (held_coolant_reference(ctx), refined(COOLANT_HELD)) {
+                (Some(reference), Some(_)) => {
+                    let (g_on, g_warmth) = (g0, driver(1).0);
+                    if g_warmth < 0.0 {
+                        let held_at = reference - g_on / g_warmth;
+                        p.insert("coolant_temperature_C".into(), held_at);
+                        format!(
+                            "; the coolant is held near {held_at:.1} °C, not following the room"
+                        )
+                    } else {
+                        "; the coolant is held at a temperature of its own, not following the room"
+                            .to_string()
+                    }
+                }
+                _ => String::new(),
+            };
             format!(
-                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated{through}: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off){convection}",
+                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated{through}: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off){convection}{held}",
                 average.abs(),
                 extreme.abs(),
                 on_vs_off.abs(),

@@ -466,7 +466,7 @@ fn analyse_watched(
         .accepted
         .iter()
         .zip(&joint.active)
-        .any(|((family, _), active)| *active && families[*family].refinement.is_some())
+        .any(|((family, _), active)| *active && !families[*family].refinements.is_empty())
     {
         watch.report(REFIT_AT, || "refining the corrections' forms".into())?;
         // The refit chooses every correction again, one at a time, and may settle where the
@@ -1010,7 +1010,7 @@ struct Joint<'a> {
     /// Members of fixed shape already built on `ctx` and `bins`.
     fixed: FixedMembers,
     /// Whether a correction may be chosen again among its family's refinements
-    /// ([`Family::refinement`]): not while the selection runs, which names the physics with
+    /// ([`Family::refinements`]): not while the selection runs, which names the physics with
     /// the members it was offered, but in the refit after it.
     refinements: bool,
 }
@@ -1596,7 +1596,7 @@ mod tests {
                 lagged: false,
                 axis: None,
                 state: false,
-                refinement: None,
+                refinements: Vec::new(),
             };
             binned_with_scales(&family, &ctx, &[], &bins)
         };

@@ -1503,7 +1503,7 @@ mod tests {
             lagged: true,
             axis: None,
             state: false,
-            refinement: None,
+            refinements: Vec::new(),
         }
     }
 
