@@ -336,6 +336,9 @@ pub struct GainLimit {
     pub min: f64,
     /// Inclusive upper limit.
     pub max: f64,
+    /// Only for the members that use the refinement at this nonlinear parameter
+    /// ([`Refinement::theta`]): their driver means something else than the other members'.
+    pub refined_by: Option<usize>,
 }
 
 impl GainLimit {
@@ -345,6 +348,7 @@ impl GainLimit {
             driver,
             min: 0.0,
             max: f64::INFINITY,
+            refined_by: None,
         }
     }
 
@@ -354,7 +358,14 @@ impl GainLimit {
             driver,
             min: f64::NEG_INFINITY,
             max: 0.0,
+            refined_by: None,
         }
+    }
+
+    /// Whether the limit applies to the member with nonlinear parameters `theta`.
+    fn applies_to(&self, theta: &[f64]) -> bool {
+        self.refined_by
+            .is_none_or(|k| theta.get(k).is_some_and(|v| *v > 0.0))
     }
 
     /// Whether `gain` is within the limits.
@@ -429,13 +440,16 @@ impl Family {
         width: usize,
         raw: impl Fn(usize) -> Option<f64>,
     ) -> bool {
-        self.limits.iter().all(|limit| {
-            let columns: Vec<usize> = self
-                .driver_columns(theta, limit.driver)
-                .filter(|k| *k < width)
-                .collect();
-            columns.is_empty() || limit.admits(columns.iter().filter_map(|&k| raw(k)).sum())
-        })
+        self.limits
+            .iter()
+            .filter(|l| l.applies_to(theta))
+            .all(|limit| {
+                let columns: Vec<usize> = self
+                    .driver_columns(theta, limit.driver)
+                    .filter(|k| *k < width)
+                    .collect();
+                columns.is_empty() || limit.admits(columns.iter().filter_map(|&k| raw(k)).sum())
+            })
     }
 
     /// The lag time constants of a member, s (one or two).
@@ -1169,6 +1183,7 @@ fn room_family(ctx: &Context, taus: &[f64], temperature: bool) -> Family {
                     driver,
                     min: 0.0,
                     max: 1.05,
+                    refined_by: None,
                 })
                 .collect()
         } else {
@@ -1219,8 +1234,9 @@ fn convection_of_target(ctx: &Context) -> Option<(String, f64, Vec<f64>)> {
 /// - where the part's axis runs at changing speeds, a first lag that runs faster at speed
 ///   ([`CONVECTION_SPEEDUPS`]);
 /// - on a temperature with a room column, coolant held at a temperature of its own (a
-///   chiller's setpoint) rather than following the room: the second term grows with the part's
-///   temperature over the room's mean, not over the room. As the room warms, a held coolant
+///   chiller's setpoint, within [`held_coolant_range`]) rather than following the room: the
+///   cooling grows with the part's temperature over the coolant's, not over the room's. As
+///   the room warms, a held coolant
 ///   takes more heat from a part that warms with it, where one that follows the room would
 ///   take the same: on the independent check's stator (coolant
 ///   held at 21 °C, the room swinging 2.4–3.7 K) the two refinements together left
@@ -1239,12 +1255,18 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
             signal: Some(signals.len() - 1),
         });
     }
-    let held_reference = held_coolant_reference(ctx);
-    let helds: &[f64] = if held_reference.is_some() {
+    let held_range = held_coolant_range(ctx);
+    let mut limits = Vec::new();
+    let helds: &[f64] = if held_range.is_some() {
         refinements.push(Refinement {
             theta: COOLANT_HELD,
             signal: None,
         });
+        // Both terms cool, so the held temperature lies between the range's ends.
+        limits.extend((0..2).map(|driver| GainLimit {
+            refined_by: Some(COOLANT_HELD),
+            ..GainLimit::negative(driver)
+        }));
         &[0.0, 1.0]
     } else {
         &[0.0]
@@ -1262,16 +1284,22 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
         refine: Some(Refine { log: true }),
         build: Box::new(move |ctx, theta| {
             let c = ctx.coolant.clone().unwrap_or_default();
-            let ce: Vec<f64> = match held_reference {
-                Some(reference) if theta[COOLANT_HELD] > 0.0 => c
-                    .iter()
+            let over = |reference: &dyn Fn(usize) -> f64| -> Vec<f64> {
+                c.iter()
                     .zip(&ctx.sim)
-                    .map(|(c, t)| c * (t - reference))
-                    .collect(),
-                _ => c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect(),
+                    .enumerate()
+                    .map(|(i, (c, t))| c * (t - reference(i)))
+                    .collect()
+            };
+            let drivers = match held_range {
+                Some((lo, hi)) if theta[COOLANT_HELD] > 0.0 => [over(&|_| hi), over(&|_| lo)],
+                _ => {
+                    let ce = c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect();
+                    [c.clone(), ce]
+                }
             };
             let speedup = theta[CONVECTION_SPEEDUP];
-            [c, ce]
+            drivers
                 .iter()
                 .flat_map(|driver| {
                     let mut columns = vec![match &convection {
@@ -1293,7 +1321,7 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
                 })
                 .collect()
         }),
-        limits: Vec::new(),
+        limits,
         axis: None,
         lagged: true,
         state: true,
@@ -1301,13 +1329,21 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
     }
 }
 
-/// The temperature a held coolant's term measures the part from: the real room's mean, on a
-/// temperature target with a room column that moves (elsewhere a held coolant and one that
-/// follows the room are the same term).
-fn held_coolant_reference(ctx: &Context) -> Option<f64> {
+/// How far from the room a chiller may hold its coolant: a setpoint within a few kelvin of
+/// the room it stands in.
+const HELD_COOLANT_MARGIN_K: f64 = 5.0;
+
+/// The temperatures a held coolant may have ([`HELD_COOLANT_MARGIN_K`] beyond the real room's
+/// range), on a temperature target with a room column that moves: elsewhere a held coolant
+/// and one that follows the room are the same term. Its term is written as two, the coolant
+/// times the part's excess over each end, both cooling: the held temperature is then
+/// between the ends, where their gains put it (a coolant term whose warmth-dependent gain
+/// is near zero would otherwise put it anywhere, −250 °C on a twin pair).
+fn held_coolant_range(ctx: &Context) -> Option<(f64, f64)> {
     let room = ctx.room.as_deref()?;
     let (lo, hi) = (quantile(room, 0.01), quantile(room, 0.99));
-    (ctx.class == TargetClass::Temperature && hi - lo > 0.0).then(|| mean(room))
+    (ctx.class == TargetClass::Temperature && hi - lo > 0.0)
+        .then_some((lo - HELD_COOLANT_MARGIN_K, hi + HELD_COOLANT_MARGIN_K))
 }
 
 /// The simulated target T through a lag of time constant `tau` that starts where the
@@ -1359,6 +1395,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             driver: 0,
             min: CALIBRATION_GAIN_RANGE.0 - 1.0,
             max: CALIBRATION_GAIN_RANGE.1 - 1.0,
+            refined_by: None,
         }],
         axis: None,
         lagged: false,
@@ -2200,20 +2237,13 @@ pub fn explain(
                 }
                 _ => String::new(),
             };
-            // Held coolant: g0·c + g1·c·(T − T̄room) = g1·c·(T − (T̄room − g0/g1)).
-            let held = match (held_coolant_reference(ctx), refined(COOLANT_HELD)) {
-                (Some(reference), Some(_)) => {
-                    let (g_on, g_warmth) = (g0, driver(1).0);
-                    if g_warmth < 0.0 {
-                        let held_at = reference - g_on / g_warmth;
-                        p.insert("coolant_temperature_C".into(), held_at);
-                        format!(
-                            "; the coolant is held near {held_at:.1} °C, not following the room"
-                        )
-                    } else {
-                        "; the coolant is held at a temperature of its own, not following the room"
-                            .to_string()
-                    }
+            // Held coolant: a·c·(T − hi) + b·c·(T − lo) = (a + b)·c·(T − (a·hi + b·lo)/(a + b)).
+            let held = match (held_coolant_range(ctx), refined(COOLANT_HELD)) {
+                (Some((lo, hi)), Some(_)) => {
+                    let (a, b) = (g0, driver(1).0);
+                    let held_at = (a * hi + b * lo) / (a + b);
+                    p.insert("coolant_temperature_C".into(), held_at);
+                    format!("; the coolant is held near {held_at:.1} °C, not following the room")
                 }
                 _ => String::new(),
             };
@@ -2412,6 +2442,38 @@ mod tests {
         assert_eq!(running_speed_span(&speed), (500.0, 900.0));
         // A machine that never runs has no running speed.
         assert_eq!(running_speed_span(&[0.0; 10]), (0.0, 0.0));
+    }
+
+    /// A limit written for a refinement's members (the held coolant's two cooling terms)
+    /// holds for them alone: the other members' driver of the same index means something else.
+    #[test]
+    fn a_limit_on_a_refinements_driver_holds_only_for_the_members_that_use_it() {
+        let family = Family {
+            kind: Kind::Physics(Physics::Coolant),
+            signals: Vec::new(),
+            theta_names: vec!["tau_s", "held", "lag_ratio"],
+            grid: Vec::new(),
+            refine: None,
+            build: Box::new(|_, _| Vec::new()),
+            limits: vec![GainLimit {
+                refined_by: Some(1),
+                ..GainLimit::negative(0)
+            }],
+            lagged: true,
+            axis: None,
+            state: false,
+            refinements: vec![Refinement {
+                theta: 1,
+                signal: None,
+            }],
+        };
+        // One lag and two drivers: a column each.
+        let (plain, held) = ([600.0, 0.0, 0.0], [600.0, 1.0, 0.0]);
+        let warming = |_: usize| Some(0.5);
+        assert!(family.within_limits(&plain, 2, warming));
+        assert!(!family.within_limits(&held, 2, warming));
+        assert!(family.within_limits(&held, 2, |_| Some(-0.5)));
+        assert!(family.uses_refinement(&held) && !family.uses_refinement(&plain));
     }
 
     #[test]
