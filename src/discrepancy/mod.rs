@@ -443,7 +443,7 @@ fn analyse_watched(
         state: None,
         watch,
         fixed,
-        refinements: false,
+        refinable: Vec::new(),
     };
     let steps = stepwise(
         &Problem {
@@ -462,24 +462,44 @@ fn analyse_watched(
     // The named corrections may now take their refined forms: once, beside each other, after
     // every step is decided (a form refined at each step costs a refit of its whole family
     // there, and the names would not change).
-    if joint
+    let mut refinable: Vec<usize> = joint
         .accepted
         .iter()
         .zip(&joint.active)
-        .any(|((family, _), active)| *active && !families[*family].refinements.is_empty())
-    {
+        .filter(|((family, _), active)| **active && !families[*family].refinements.is_empty())
+        .map(|((family, _), _)| *family)
+        .collect();
+    refinable.sort_unstable();
+    refinable.dedup();
+    if !refinable.is_empty() {
         watch.report(REFIT_AT, || "refining the corrections' forms".into())?;
         // The refit chooses every correction again, one at a time, and may settle where the
         // model as a whole predicts worse than before it, or where a correction breaks its
         // physics' limits (a time constant refined past them): the refined forms are kept
         // only within the limits and where the held-out blocks say the model is better.
         let before = joint.clone();
-        joint.refinements = true;
-        joint.refit_jointly();
-        let withdrawn = joint.keep_within_limits(joint.stateful());
         let error = |j: &Joint<'_>| j.held_out_error(&j.state_context(), None, None);
-        if withdrawn || error(&joint) >= error(&before) {
-            joint = before;
+        let baseline = error(&before);
+        let refit_refining = |families: Vec<usize>| {
+            let mut refined = before.clone();
+            refined.refinable = families;
+            refined.refit_jointly();
+            let withdrawn = refined.keep_within_limits(refined.stateful());
+            let refined_error = error(&refined);
+            (!withdrawn && refined_error < baseline).then_some((refined, refined_error))
+        };
+        let mut kept = refit_refining(refinable.clone());
+        if kept.is_none() && refinable.len() > 1 {
+            // One correction's refined forms may lead the refit where the model predicts worse
+            // while another's would help (the coolant's, held at its own temperature, beside
+            // the room's faster lags): each alone, the best kept.
+            kept = refinable
+                .iter()
+                .filter_map(|&family| refit_refining(vec![family]))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+        }
+        if let Some((refined, _)) = kept {
+            joint = refined;
         }
     }
     watch.report(REFIT_AT, || "refitting on all rows".into())?;
@@ -1009,10 +1029,10 @@ struct Joint<'a> {
     watch: &'a Watch<'a>,
     /// Members of fixed shape already built on `ctx` and `bins`.
     fixed: FixedMembers,
-    /// Whether a correction may be chosen again among its family's refinements
-    /// ([`Family::refinements`]): not while the selection runs, which names the physics with
-    /// the members it was offered, but in the refit after it.
-    refinements: bool,
+    /// The families whose corrections may be chosen again among their refinements
+    /// ([`Family::refinements`]): none while the selection runs, which names the physics with
+    /// the members it was offered, only in the refit after it.
+    refinable: Vec<usize>,
 }
 
 impl Joint<'_> {
@@ -1317,7 +1337,7 @@ impl Joint<'_> {
         let mut grid: Vec<Vec<f64>> = f
             .grid
             .iter()
-            .filter(|theta| self.refinements || !f.uses_refinement(theta))
+            .filter(|theta| self.refinable.contains(&family) || !f.uses_refinement(theta))
             .cloned()
             .collect();
         grid.push(current.to_vec());
