@@ -1203,6 +1203,9 @@ fn room_family(ctx: &Context, taus: &[f64], temperature: bool) -> Family {
 /// noise; with the rate growing with speed, 0.19–0.23 °C.
 const CONVECTION_SPEEDUPS: [f64; 3] = [0.5, 1.0, 2.0];
 
+/// The steps of [`convection_of_target`]'s speed share per unit.
+const CONVECTION_SHARE_STEPS: f64 = 64.0;
+
 /// Where [`coolant_on_the_part_family`]'s members keep their convection speed-up.
 const CONVECTION_SPEEDUP: usize = 1;
 /// Where they keep whether their coolant is held at its own temperature (positive) or
@@ -1222,8 +1225,14 @@ fn convection_of_target(ctx: &Context) -> Option<(String, f64, Vec<f64>)> {
     if fast.is_nan() || fast <= 0.0 {
         return None;
     }
-    let scale = (fast / 1000.0).powf(0.8);
-    let share = signals.speed_power(0.8).iter().map(|p| p / scale).collect();
+    // In steps of 1/64: a measured speed jitters from row to row, and a lag pays an
+    // exponential each time its rate changes ([`lowpass_switched`]).
+    let scale = (fast / 1000.0).powf(0.8) / CONVECTION_SHARE_STEPS;
+    let share = signals
+        .speed_power(0.8)
+        .iter()
+        .map(|p| (p / scale).round() / CONVECTION_SHARE_STEPS)
+        .collect();
     Some((axis_column(axis, Quantity::Speed), fast, share))
 }
 
