@@ -859,16 +859,18 @@ mod tests {
     }
 
     /// On a long regular grid the stretches computed side by side and joined give the lag row
-    /// by row, whatever the switch does (on, off, part-way) and wherever the stretches end.
+    /// by row, whatever the switch does (on, off, part-way, or changing on every row as a
+    /// measured speed's share does) and wherever the stretches end.
     #[test]
     fn a_switched_lag_in_stretches_is_the_lag_row_by_row() {
         for n in [2048, 5000, 20_011] {
             let time: Vec<f64> = (0..n).map(|i| i as f64 * 0.5).collect();
             let input: Vec<f64> = (0..n).map(|i| ((i * 37) % 101) as f64 / 10.0).collect();
             let switch: Vec<f64> = (0..n)
-                .map(|i| match (i / 173) % 5 {
+                .map(|i| match (i / 173) % 6 {
                     0 | 1 => 0.0,
                     2 => 0.5,
+                    3 => ((i * 13) % 7) as f64 / 8.0,
                     _ => 1.0,
                 })
                 .collect();
