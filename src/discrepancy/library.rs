@@ -8,8 +8,9 @@
 //! τ; delays are estimated, never assumed.
 
 use std::collections::BTreeMap;
+use std::collections::HashMap;
 use std::fmt;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, OnceLock};
 
 use super::align::{Index, index_onto, interpolate};
 use super::series::{
@@ -159,6 +160,20 @@ pub struct AxisSignals {
     /// (|n|/1000)^p for the exponents of [`SPEED_EXPONENTS`], computed once: every member of
     /// a speed-driven family needs one, and the power is most of what building it costs.
     speed_powers: std::sync::Arc<Vec<(f64, Vec<f64>)>>,
+    /// The speed as forced convection sees it, found on first use
+    /// ([`AxisSignals::convection`]) and shared by the context's copies.
+    convection: Arc<OnceLock<Option<Convection>>>,
+}
+
+/// An axis's speed as forced convection sees it ([`CONVECTION_SPEEDUPS`]).
+#[derive(Debug)]
+struct Convection {
+    /// n_fast, the fastest tenth of the running speeds ([`running_speed_span`]), rpm.
+    fast_rpm: f64,
+    /// (|n| / n_fast)^0.8 row by row, in steps of 1/[`CONVECTION_SHARE_STEPS`]: a measured
+    /// speed jitters from row to row, and a lag pays an exponential each time its rate
+    /// changes ([`lowpass_switched`]).
+    share: Vec<f64>,
 }
 
 /// Exponents of the speed (in 1000 rpm) that the library's physics uses: forced convection
@@ -192,7 +207,31 @@ impl AxisSignals {
             sim_current,
             direction,
             speed_powers: std::sync::Arc::new(speed_powers),
+            convection: Arc::default(),
         }
+    }
+
+    /// The speed as forced convection sees it; `None` for an axis that never runs. Found once:
+    /// it takes a percentile of the speeds, and every lag that runs faster at speed reads it.
+    fn convection(&self) -> Option<&Convection> {
+        self.convection
+            .get_or_init(|| {
+                let (_, fast) = running_speed_span(&self.speed);
+                if fast.is_nan() || fast <= 0.0 {
+                    return None;
+                }
+                let scale = (fast / 1000.0).powf(0.8) / CONVECTION_SHARE_STEPS;
+                let share = self
+                    .speed_power(0.8)
+                    .iter()
+                    .map(|p| (p / scale).round() / CONVECTION_SHARE_STEPS)
+                    .collect();
+                Some(Convection {
+                    fast_rpm: fast,
+                    share,
+                })
+            })
+            .as_ref()
     }
 
     /// (|n|/1000)^`exponent` row by row.
@@ -254,6 +293,65 @@ pub struct Context {
     /// on which the corrections are built before they are read here
     /// ([`super::align::Aligned::real_rate`]).
     pub real_rate: Option<Arc<RealRate>>,
+    /// The real coolant's own lags, kept once built; shared by the context's copies with
+    /// another state, whose coolant is the same.
+    coolant_lags: Arc<CoolantLags>,
+}
+
+/// Most values [`CoolantLags`] keeps (64 MB): every lag of the coolant's grid at 100 k rows.
+const COOLANT_LAGS_BUDGET: usize = 8 << 20;
+
+/// First-order lags of a context's `coolant_on`, by time constant and speed-up
+/// ([`coolant_on_the_part_family`]). The coolant term's on/off part lags the measured coolant
+/// alone, the same in every state of the part, while the joint refit scores hundreds of its
+/// members in each round: kept, each lag at the grid's time constants is built once instead
+/// of once per member. Past [`COOLANT_LAGS_BUDGET`] nothing more is kept.
+#[derive(Default)]
+struct CoolantLags {
+    kept: Mutex<KeptLags>,
+}
+
+#[derive(Default)]
+struct KeptLags {
+    /// By (τ, speed-up) bits.
+    lags: HashMap<(u64, u64), Arc<Vec<f64>>>,
+    /// Values held.
+    values: usize,
+}
+
+impl CoolantLags {
+    /// The lag at (`tau`, `speedup`), built by `build` when it is not kept. The lock is not
+    /// held while building: another thread may build the same lag meanwhile, to the same
+    /// values.
+    fn get_or_build(
+        &self,
+        tau: f64,
+        speedup: f64,
+        build: impl FnOnce() -> Vec<f64>,
+    ) -> Arc<Vec<f64>> {
+        let key = (tau.to_bits(), speedup.to_bits());
+        // A poisoned lock only means another thread panicked mid-insert: build without it.
+        if let Ok(kept) = self.kept.lock()
+            && let Some(lag) = kept.lags.get(&key)
+        {
+            return Arc::clone(lag);
+        }
+        let lag = Arc::new(build());
+        if let Ok(mut kept) = self.kept.lock()
+            && kept.values + lag.len() <= COOLANT_LAGS_BUDGET
+            && kept.lags.insert(key, Arc::clone(&lag)).is_none()
+        {
+            kept.values += lag.len();
+        }
+        lag
+    }
+}
+
+impl fmt::Debug for CoolantLags {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let kept = self.kept.lock().map_or(0, |k| k.lags.len());
+        f.debug_struct("CoolantLags").field("kept", &kept).finish()
+    }
 }
 
 /// The context on the real recording's own rows, and how its rows and the compared ones
@@ -576,6 +674,7 @@ impl Context {
                 _ => None,
             },
             real_rate: None,
+            coolant_lags: Arc::default(),
         }
     }
 
@@ -1211,29 +1310,19 @@ const CONVECTION_SPEEDUP: usize = 1;
 /// Where they keep whether their coolant is held at its own temperature (positive) or
 /// follows the room (0).
 const COOLANT_HELD: usize = 2;
+/// Where they keep their lag ratio ([`LAG_RATIOS`]).
+const LAG_RATIO: usize = 3;
 
-/// The speed of the axis `target` belongs to as forced convection sees it: (|n| / n_fast)^0.8
-/// ([`CONVECTION_SPEEDUPS`]), with its column's name and n_fast (rpm); `None` for a target of
-/// no axis in the recording or an axis that never runs.
-fn convection_of_target(ctx: &Context) -> Option<(String, f64, Vec<f64>)> {
+/// The speed of the axis `target` belongs to as forced convection sees it
+/// ([`AxisSignals::convection`]), with its column's name; `None` for a target of no axis in
+/// the recording or an axis that never runs.
+fn convection_of_target(ctx: &Context) -> Option<(String, &Convection)> {
     let axis = match Channel::parse(&ctx.target) {
         Channel::Servo { axis, .. } | Channel::Reference { axis, .. } => axis,
         _ => return None,
     };
-    let signals = ctx.axis(axis)?;
-    let (_, fast) = running_speed_span(&signals.speed);
-    if fast.is_nan() || fast <= 0.0 {
-        return None;
-    }
-    // In steps of 1/64: a measured speed jitters from row to row, and a lag pays an
-    // exponential each time its rate changes ([`lowpass_switched`]).
-    let scale = (fast / 1000.0).powf(0.8) / CONVECTION_SHARE_STEPS;
-    let share = signals
-        .speed_power(0.8)
-        .iter()
-        .map(|p| (p / scale).round() / CONVECTION_SHARE_STEPS)
-        .collect();
-    Some((axis_column(axis, Quantity::Speed), fast, share))
+    let convection = ctx.axis(axis)?.convection()?;
+    Some((axis_column(axis, Quantity::Speed), convection))
 }
 
 /// Coolant that removes heat from the part itself, in proportion to how far the part is above
@@ -1252,12 +1341,11 @@ fn convection_of_target(ctx: &Context) -> Option<(String, f64, Vec<f64>)> {
 ///   0.03–0.14 °C without noise, the faster lag alone 0.19–0.23 °C.
 fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) -> Family {
     // theta: [τ, convection speed-up, held (0 or 1), lag ratio].
-    let convection = convection_of_target(ctx);
     let mut signals = vec![COOLANT.to_string(), simulated];
     let mut speedups = vec![0.0];
     let mut refinements = Vec::new();
-    if let Some((speed, _, _)) = &convection {
-        signals.push(speed.clone());
+    if let Some((speed, _)) = convection_of_target(ctx) {
+        signals.push(speed);
         speedups.extend(CONVECTION_SPEEDUPS);
         refinements.push(Refinement {
             theta: CONVECTION_SPEEDUP,
@@ -1280,11 +1368,16 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
     } else {
         &[0.0]
     };
-    let grid = thermal_grid(taus, &speedups)
+    let grid: Vec<Vec<f64>> = thermal_grid(taus, &speedups)
         .into_iter()
         .flat_map(|m| helds.iter().map(move |&held| vec![m[0], m[1], held, m[2]]))
         .collect();
-    let convection = convection.map(|(_, _, share)| Arc::new(share));
+    // The lags the grid's members share; a refined member's time constant is its own.
+    let grid_lags: Vec<u64> = grid
+        .iter()
+        .flat_map(|m| [m[0], m[0] * m[LAG_RATIO]])
+        .map(f64::to_bits)
+        .collect();
     Family {
         kind: Kind::Physics(Physics::Coolant),
         signals,
@@ -1292,43 +1385,62 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
         grid,
         refine: Some(Refine { log: true }),
         build: Box::new(move |ctx, theta| {
-            let c = ctx.coolant.clone().unwrap_or_default();
-            let over = |reference: &dyn Fn(usize) -> f64| -> Vec<f64> {
-                c.iter()
-                    .zip(&ctx.sim)
-                    .enumerate()
-                    .map(|(i, (c, t))| c * (t - reference(i)))
-                    .collect()
-            };
-            let drivers = match held_range {
-                Some((lo, hi)) if theta[COOLANT_HELD] > 0.0 => [over(&|_| hi), over(&|_| lo)],
-                _ => {
-                    let ce = c.iter().zip(&ctx.excess).map(|(c, e)| c * e).collect();
-                    [c.clone(), ce]
-                }
+            let Some(c) = ctx.coolant.as_deref() else {
+                return Vec::new();
             };
             let speedup = theta[CONVECTION_SPEEDUP];
-            drivers
+            // The context's own rows: a coarse simulation's corrections are built on the real
+            // recording's, whose speed has rows of its own.
+            let share = match convection_of_target(ctx) {
+                Some((_, convection)) => Some(convection.share.as_slice()),
+                None if speedup > 0.0 => return Vec::new(),
+                None => None,
+            };
+            let lag = |driver: &[f64], tau: f64, speedup: f64| match share {
+                Some(share) if speedup > 0.0 => {
+                    lowpass_switched(&ctx.time, ctx.regular_step, driver, tau, share, speedup)
+                }
+                _ => accumulated(ctx, driver, tau, Start::Rest),
+            };
+            // The first lag, and the second, slower path (through the part's surroundings)
+            // that keeps its rate.
+            let mut shapes = vec![(theta[0], speedup)];
+            if theta[LAG_RATIO] > 0.0 {
+                shapes.push((theta[0] * theta[LAG_RATIO], 0.0));
+            }
+            let on: Vec<Arc<Vec<f64>>> = shapes
                 .iter()
-                .flat_map(|driver| {
-                    let mut columns = vec![match &convection {
-                        Some(share) if speedup > 0.0 => lowpass_switched(
-                            &ctx.time,
-                            ctx.regular_step,
-                            driver,
-                            theta[0],
-                            share,
-                            speedup,
-                        ),
-                        _ => accumulated(ctx, driver, theta[0], Start::Rest),
-                    }];
-                    // The second, slower path (through the part's surroundings) keeps its rate.
-                    if let Some(&ratio) = theta.last().filter(|r| **r > 0.0) {
-                        columns.push(accumulated(ctx, driver, theta[0] * ratio, Start::Rest));
+                .map(|&(tau, speedup)| {
+                    if grid_lags.contains(&tau.to_bits()) {
+                        ctx.coolant_lags
+                            .get_or_build(tau, speedup, || lag(c, tau, speedup))
+                    } else {
+                        Arc::new(lag(c, tau, speedup))
                     }
-                    columns
                 })
-                .collect()
+                .collect();
+            let held = held_range.filter(|_| theta[COOLANT_HELD] > 0.0);
+            let part = match held {
+                Some(_) => &ctx.sim,
+                None => &ctx.excess,
+            };
+            let warmth: Vec<f64> = c.iter().zip(part).map(|(c, t)| c * t).collect();
+            let warm: Vec<Vec<f64>> = shapes
+                .iter()
+                .map(|&(tau, speedup)| lag(&warmth, tau, speedup))
+                .collect();
+            match held {
+                // c·(T − end) for each end of the range, from the two lags (a lag is linear).
+                Some((lo, hi)) => [hi, lo]
+                    .iter()
+                    .flat_map(|end| {
+                        warm.iter().zip(&on).map(move |(w, o)| {
+                            w.iter().zip(o.iter()).map(|(w, o)| w - end * o).collect()
+                        })
+                    })
+                    .collect(),
+                None => on.iter().map(|o| o.to_vec()).chain(warm).collect(),
+            }
         }),
         limits,
         axis: None,
@@ -2237,7 +2349,8 @@ pub fn explain(
                     .map(|r| theta[r.theta])
             };
             let convection = match (convection_of_target(ctx), refined(CONVECTION_SPEEDUP)) {
-                (Some((speed, fast, _)), Some(speedup)) => {
+                (Some((speed, convection)), Some(speedup)) => {
+                    let fast = convection.fast_rpm;
                     p.insert("convection_speedup".into(), speedup);
                     format!(
                         "; the part sheds it {:.1} × as fast at {fast:.0} rpm (`{speed}`) as at rest",
@@ -2451,6 +2564,80 @@ mod tests {
         assert_eq!(running_speed_span(&speed), (500.0, 900.0));
         // A machine that never runs has no running speed.
         assert_eq!(running_speed_span(&[0.0; 10]), (0.0, 0.0));
+    }
+
+    /// A coarse simulation's corrections are built on the real recording's own rows, and the
+    /// coolant's faster-at-speed lags read the speed on those rows: the speed's share found on
+    /// the simulation's instants has another length, and the lags built with it were dropped.
+    #[test]
+    fn the_coolants_faster_lags_are_built_on_a_coarse_simulations_real_rows() {
+        let names = |columns: &[&str]| columns.iter().map(|c| c.to_string()).collect();
+        let mut sim = crate::signal::Recording::new(
+            "sim",
+            names(&["time_s", "S.stator_temp_C", "ambient_C"]),
+        )
+        .expect("valid names");
+        let mut real = crate::signal::Recording::new(
+            "real",
+            names(&[
+                "time_s",
+                "S.speed_rpm",
+                "S.stator_temp_C",
+                "ambient_C",
+                "coolant_on",
+            ]),
+        )
+        .expect("valid names");
+        let room = |t: f64| 20.0 + (t / 2000.0).sin();
+        for i in 0..6000 {
+            let t = f64::from(i);
+            let speed = if (i / 300) % 2 == 0 { 3000.0 } else { 0.0 };
+            let coolant = if (i / 700) % 2 == 0 { 1.0 } else { 0.0 };
+            real.push_row(&[t, speed, 30.0 + 1e-3 * t, room(t), coolant])
+                .expect("a row of the schema");
+            if i % 5 == 0 {
+                sim.push_row(&[t, 30.0, room(t)])
+                    .expect("a row of the schema");
+            }
+        }
+        let aligned = super::super::align::Aligned::new(&sim, &real, "S.stator_temp_C")
+            .expect("the pair aligns");
+        let ctx = Context::new(&aligned, "S.stator_temp_C");
+        let real_rows = ctx
+            .real_rate
+            .as_ref()
+            .expect("built on the real rows")
+            .context
+            .time
+            .len();
+        assert!(real_rows > ctx.time.len());
+        let (families, _) = families(&ctx);
+        let coolant = families
+            .iter()
+            .find(|f| f.kind == Kind::Physics(Physics::Coolant))
+            .expect("the coolant switches");
+        let member = |speedup: f64| {
+            coolant
+                .grid
+                .iter()
+                .find(|m| m[CONVECTION_SPEEDUP] == speedup && m[COOLANT_HELD] == 0.0)
+                .expect("a member with this speed-up")
+        };
+        let (plain, faster) = (member(0.0), member(2.0));
+        assert_eq!(plain[0], faster[0]);
+        let columns = |theta: &[f64]| super::super::build(coolant, &ctx, theta);
+        let (plain, faster) = (columns(plain), columns(faster));
+        assert!(!faster.is_empty(), "the faster lags were dropped");
+        assert_eq!(faster.len(), plain.len());
+        assert!(faster.iter().all(|c| c.len() == ctx.time.len()));
+        // The coolant leaves faster while the spindle runs: its lag settles lower.
+        assert!(
+            faster[0]
+                .iter()
+                .zip(&plain[0])
+                .all(|(f, p)| *f <= *p + 1e-12)
+        );
+        assert!(faster[0].iter().zip(&plain[0]).any(|(f, p)| *f < *p - 1e-3));
     }
 
     /// A limit written for a refinement's members (the held coolant's two cooling terms)
