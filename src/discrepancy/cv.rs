@@ -111,19 +111,31 @@ fn cholesky(matrix: &[f64], p: usize) -> Option<Vec<f64>> {
 /// Solves L Lᵀ x = b.
 fn cholesky_solve(l: &[f64], p: usize, b: &[f64]) -> Vec<f64> {
     let mut z = b.to_vec();
+    cholesky_solve_in_place(l, p, &mut z);
+    z
+}
+
+/// [`cholesky_solve`] overwriting its right-hand side `z` with the solution: the held-out
+/// error solves a small system per fold for every candidate and surrogate, hundreds of
+/// thousands of them, where an allocation each costs as much as the solve.
+fn cholesky_solve_in_place(l: &[f64], p: usize, z: &mut [f64]) {
+    // L's rows and columns as slices, not indices: no bounds check in the inner loops, the
+    // same operations in the same order.
     for i in 0..p {
-        for k in 0..i {
-            z[i] -= l[i * p + k] * z[k];
+        let mut zi = z[i];
+        for (a, zk) in l[i * p..i * p + i].iter().zip(&z[..i]) {
+            zi -= a * zk;
         }
-        z[i] /= l[i * p + i];
+        z[i] = zi / l[i * p + i];
     }
     for i in (0..p).rev() {
-        for k in i + 1..p {
-            z[i] -= l[k * p + i] * z[k];
+        let mut zi = z[i];
+        let column_below = l[i * p + i..].iter().step_by(p).skip(1);
+        for (a, zk) in column_below.zip(&z[i + 1..]) {
+            zi -= a * zk;
         }
-        z[i] /= l[i * p + i];
+        z[i] = zi / l[i * p + i];
     }
-    z
 }
 
 /// Ordinary least squares of `y` on `columns` (include a column of ones for an intercept) by
@@ -386,13 +398,21 @@ impl ModelGram {
     pub fn cv_sse(&self, stats: &TargetStats<'_>, blocks: &Blocks) -> Option<f64> {
         let nb = blocks.len();
         let total = self.zty_sum(stats, 0..nb);
+        // The fold's coefficients and its test sums, reused fold after fold (see
+        // `cholesky_solve_in_place`).
+        let mut beta = vec![0.0; self.p];
+        let mut test = vec![0.0; self.p];
+        let sum = |col: &[f64], range: Range<usize>| -> f64 { col[range].iter().sum() };
         let mut sse = 0.0;
         for (fold, factor) in blocks.folds.iter().zip(&self.folds) {
             let l = factor.training_factor.as_ref()?;
-            let excluded = self.zty_sum(stats, fold.excluded.clone());
-            let training: Vec<f64> = total.iter().zip(&excluded).map(|(t, e)| t - e).collect();
-            let beta = cholesky_solve(l, self.p, &training);
-            let test = self.zty_sum(stats, fold.test.clone());
+            for ((b, t), col) in beta.iter_mut().zip(&total).zip(&stats.zty) {
+                *b = t - sum(col, fold.excluded.clone());
+            }
+            cholesky_solve_in_place(l, self.p, &mut beta);
+            for (t, col) in test.iter_mut().zip(&stats.zty) {
+                *t = sum(col, fold.test.clone());
+            }
             let yty: f64 = stats.yty[fold.test.clone()].iter().sum();
             let cross: f64 = beta.iter().zip(&test).map(|(b, t)| b * t).sum();
             sse += yty - 2.0 * cross + quadratic(&factor.test_gram, self.p, &beta);
