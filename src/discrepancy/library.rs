@@ -437,6 +437,9 @@ pub struct GainLimit {
     /// Only for the members that use the refinement at this nonlinear parameter
     /// ([`Refinement::theta`]): their driver means something else than the other members'.
     pub refined_by: Option<usize>,
+    /// `driver` counts back from the member's last driver (0 the last): a refinement's
+    /// driver comes after those of the member it refines, whose number varies.
+    pub from_end: bool,
 }
 
 impl GainLimit {
@@ -447,6 +450,7 @@ impl GainLimit {
             min: 0.0,
             max: f64::INFINITY,
             refined_by: None,
+            from_end: false,
         }
     }
 
@@ -457,6 +461,15 @@ impl GainLimit {
             min: f64::NEG_INFINITY,
             max: 0.0,
             refined_by: None,
+            from_end: false,
+        }
+    }
+
+    /// The same limit on the member's last driver but `self.driver`.
+    pub fn from_end(self) -> Self {
+        GainLimit {
+            from_end: true,
+            ..self
         }
     }
 
@@ -538,12 +551,20 @@ impl Family {
         width: usize,
         raw: impl Fn(usize) -> Option<f64>,
     ) -> bool {
+        let drivers = width / self.driver_columns(theta, 0).len().max(1);
         self.limits
             .iter()
             .filter(|l| l.applies_to(theta))
             .all(|limit| {
+                let driver = match limit.from_end {
+                    false => Some(limit.driver),
+                    true => drivers.checked_sub(1 + limit.driver),
+                };
+                let Some(driver) = driver else {
+                    return true;
+                };
                 let columns: Vec<usize> = self
-                    .driver_columns(theta, limit.driver)
+                    .driver_columns(theta, driver)
                     .filter(|k| *k < width)
                     .collect();
                 columns.is_empty() || limit.admits(columns.iter().filter_map(|&k| raw(k)).sum())
@@ -1283,6 +1304,7 @@ fn room_family(ctx: &Context, taus: &[f64], temperature: bool) -> Family {
                     min: 0.0,
                     max: 1.05,
                     refined_by: None,
+                    from_end: false,
                 })
                 .collect()
         } else {
@@ -1352,7 +1374,9 @@ fn coolant_on_the_part_family(ctx: &Context, simulated: String, taus: &[f64]) ->
             signal: Some(signals.len() - 1),
         });
     }
-    let held_range = held_coolant_range(ctx);
+    // Elsewhere than on a temperature the part's excess is over its first value, not over
+    // the room, and a held coolant and one that follows the room are the same term.
+    let held_range = held_coolant_range(ctx).filter(|_| ctx.class == TargetClass::Temperature);
     let mut limits = Vec::new();
     let helds: &[f64] = if held_range.is_some() {
         refinements.push(Refinement {
@@ -1463,8 +1487,178 @@ const HELD_COOLANT_MARGIN_K: f64 = 5.0;
 fn held_coolant_range(ctx: &Context) -> Option<(f64, f64)> {
     let room = ctx.room.as_deref()?;
     let (lo, hi) = (quantile(room, 0.01), quantile(room, 0.99));
-    (ctx.class == TargetClass::Temperature && hi - lo > 0.0)
-        .then_some((lo - HELD_COOLANT_MARGIN_K, hi + HELD_COOLANT_MARGIN_K))
+    (hi - lo > 0.0).then_some((lo - HELD_COOLANT_MARGIN_K, hi + HELD_COOLANT_MARGIN_K))
+}
+
+/// Coolant that cools a motor, as it reaches a part beside it (a spindle's bearings, its
+/// growth, through the housing): by what it takes from the winding, in proportion to how far
+/// the winding is above the coolant — the winding's measured excess over the room (the coolant
+/// taken to follow the room; over the winding's first reading where there is no room). The
+/// part moves against the way it moves as the winding warms: a temperature falls, a growth
+/// shrinks whichever way the simulation has it grow with the winding's warmth. Two
+/// refinements ([`Family::refinements`]), offered only to the refit after the selection:
+/// - coolant held at a temperature of its own (a chiller's setpoint, within
+///   [`held_coolant_range`]): the winding's excess over each end of the range, both cooling;
+/// - the friction heat of the cooler part: a spindle whose lubricant the coolant cools draws
+///   more current at speed than the simulation, which ran it warm, and the bearings turn that
+///   friction into heat. Its driver is the measured current's excess over the simulated one
+///   times the speed, warming the part.
+///
+/// On the independent check's front bearing (coolant held at 21 °C on the stator, the
+/// bearing's friction falling as it warms), the winding's excess over the room left
+/// 0.12–0.34 °C without noise; held at its own temperature and with the friction heat,
+/// 0.07–0.09 °C.
+fn coolant_through_the_winding_family(
+    ctx: &Context,
+    axis_signals: &AxisSignals,
+    taus: &[f64],
+) -> Family {
+    // theta: [τ, held (0 or 1), friction heat (0 or 1), lag ratio].
+    const HELD: usize = 1;
+    const FRICTION: usize = 2;
+    let axis = axis_signals.axis;
+    let stator = axis_column(axis, Quantity::StatorTemp);
+    let warms_with_winding = match ctx.class {
+        TargetClass::Temperature => 1.0,
+        _ => axis_signals.stator.as_deref().map_or(0.0, |stator| {
+            let (s, w) = (mean(&ctx.sim), mean(stator));
+            ctx.sim
+                .iter()
+                .zip(stator)
+                .map(|(a, b)| (a - s) * (b - w))
+                .sum()
+        }),
+    };
+    if warms_with_winding == 0.0 {
+        // The sign of the coolant's effect is unknown: no limits, and no refinements whose
+        // terms the limits keep apart.
+        return thermal_family(
+            Physics::Coolant,
+            vec![COOLANT.into(), stator],
+            vec!["tau_s", "coolant_held", "friction_heat", "lag_ratio"],
+            thermal_grid(taus, &[])
+                .into_iter()
+                .map(|m| vec![m[0], 0.0, 0.0, m[1]])
+                .collect(),
+            winding_coolant_drivers(axis, None, HELD, FRICTION),
+            None,
+            Some(axis),
+            Start::Rest,
+        );
+    }
+    // The coolant's terms move the part against the way it moves as the winding warms, the
+    // friction heat with it.
+    let limit = |driver: usize, with_the_warmth: bool| {
+        if (warms_with_winding > 0.0) == with_the_warmth {
+            GainLimit::positive(driver)
+        } else {
+            GainLimit::negative(driver)
+        }
+    };
+    let cooling = |driver: usize| limit(driver, false);
+    let mut signals = vec![COOLANT.to_string(), stator];
+    let mut limits = vec![cooling(0)];
+    let mut refinements = Vec::new();
+    let held_range = held_coolant_range(ctx);
+    let mut helds = vec![0.0];
+    if held_range.is_some() {
+        helds.push(1.0);
+        refinements.push(Refinement {
+            theta: HELD,
+            signal: None,
+        });
+        limits.push(GainLimit {
+            refined_by: Some(HELD),
+            ..cooling(1)
+        });
+    }
+    let mut frictions = vec![0.0];
+    if axis_signals.current.is_some() && axis_signals.sim_current.is_some() {
+        frictions.push(1.0);
+        signals.push(axis_column(axis, Quantity::Current));
+        refinements.push(Refinement {
+            theta: FRICTION,
+            signal: Some(signals.len() - 1),
+        });
+        limits.push(
+            GainLimit {
+                refined_by: Some(FRICTION),
+                ..limit(0, true)
+            }
+            .from_end(),
+        );
+    }
+    let mut grid = Vec::new();
+    for m in thermal_grid(taus, &[]) {
+        for &held in &helds {
+            for &friction in &frictions {
+                grid.push(vec![m[0], held, friction, m[1]]);
+            }
+        }
+    }
+    Family {
+        refinements,
+        ..thermal_family(
+            Physics::Coolant,
+            signals,
+            vec!["tau_s", "coolant_held", "friction_heat", "lag_ratio"],
+            grid,
+            winding_coolant_drivers(axis, held_range, HELD, FRICTION),
+            limits,
+            Some(axis),
+            Start::Rest,
+        )
+    }
+}
+
+/// The drivers of [`coolant_through_the_winding_family`]'s member, by its parameters: the
+/// coolant times the winding's excess over the room (or over each end of `held_range` for a
+/// held coolant), and the friction heat's driver after them.
+fn winding_coolant_drivers(
+    axis: AxisId,
+    held_range: Option<(f64, f64)>,
+    held: usize,
+    friction: usize,
+) -> Drivers {
+    Box::new(move |ctx, theta| {
+        let (Some(c), Some(a)) = (ctx.coolant.as_ref(), ctx.axis(axis)) else {
+            return vec![];
+        };
+        let Some(stator) = a.stator.as_ref() else {
+            return vec![];
+        };
+        let over = |reference: &dyn Fn(usize) -> f64| -> Vec<f64> {
+            c.iter()
+                .zip(stator)
+                .enumerate()
+                .map(|(i, (c, s))| c * (s - reference(i)))
+                .collect()
+        };
+        // Over the room: the room's swing, which the winding follows too, is not the
+        // coolant's. Without a room, over the winding's first reading, as the target's own
+        // excess is.
+        let first = stator.first().copied().unwrap_or(0.0);
+        let mut drivers = match (held_range, &ctx.room) {
+            (Some((lo, hi)), _) if theta[held] > 0.0 => vec![over(&|_| hi), over(&|_| lo)],
+            (_, Some(room)) => vec![over(&|i| room[i])],
+            (_, None) => vec![over(&|_| first)],
+        };
+        if theta[friction] > 0.0 {
+            let (Some(current), Some(simulated)) = (a.current.as_ref(), a.sim_current.as_ref())
+            else {
+                return vec![];
+            };
+            drivers.push(
+                current
+                    .iter()
+                    .zip(simulated)
+                    .zip(&a.speed)
+                    .map(|((i, j), n)| (i.abs() - j.abs()) * n.abs() / 1000.0)
+                    .collect(),
+            );
+        }
+        drivers
+    })
 }
 
 /// The simulated target T through a lag of time constant `tau` that starts where the
@@ -1517,6 +1711,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             min: CALIBRATION_GAIN_RANGE.0 - 1.0,
             max: CALIBRATION_GAIN_RANGE.1 - 1.0,
             refined_by: None,
+            from_end: false,
         }],
         axis: None,
         lagged: false,
@@ -1590,62 +1785,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     .iter()
                     .filter(|a| beside_motor && a.stator.is_some() && winding(a) != ctx.target)
                 {
-                    let axis = axis_signals.axis;
-                    let stator = winding(axis_signals);
-                    // The coolant takes heat: the part moves against the way it moves as the
-                    // winding warms — a temperature falls, a growth shrinks whichever way the
-                    // simulation has it grow with the winding's warmth.
-                    let warms_with_winding = match ctx.class {
-                        TargetClass::Temperature => 1.0,
-                        _ => axis_signals.stator.as_deref().map_or(0.0, |stator| {
-                            let (s, w) = (mean(&ctx.sim), mean(stator));
-                            ctx.sim
-                                .iter()
-                                .zip(stator)
-                                .map(|(a, b)| (a - s) * (b - w))
-                                .sum()
-                        }),
-                    };
-                    let cooling = if warms_with_winding > 0.0 {
-                        Some(GainLimit::negative(0))
-                    } else if warms_with_winding < 0.0 {
-                        Some(GainLimit::positive(0))
-                    } else {
-                        None
-                    };
-                    out.push(thermal_family(
-                        Physics::Coolant,
-                        vec![COOLANT.into(), stator],
-                        vec!["tau_s", "lag_ratio"],
-                        thermal_grid(&taus, &[]),
-                        Box::new(move |ctx, _| {
-                            let (Some(c), Some(stator)) = (
-                                ctx.coolant.as_ref(),
-                                ctx.axis(axis).and_then(|a| a.stator.as_ref()),
-                            ) else {
-                                return vec![];
-                            };
-                            // Over the room: the room's swing, which the winding follows
-                            // too, is not the coolant's. Without a room, over the winding's
-                            // first reading, as the target's own excess is.
-                            let first = stator.first().copied().unwrap_or(0.0);
-                            let cs = match &ctx.room {
-                                Some(room) => c
-                                    .iter()
-                                    .zip(stator)
-                                    .zip(room)
-                                    .map(|((c, s), r)| c * (s - r))
-                                    .collect(),
-                                None => {
-                                    c.iter().zip(stator).map(|(c, s)| c * (s - first)).collect()
-                                }
-                            };
-                            vec![cs]
-                        }),
-                        cooling,
-                        Some(axis),
-                        Start::Rest,
-                    ));
+                    out.push(coolant_through_the_winding_family(ctx, axis_signals, &taus));
                 }
             }
             None if ctx.coolant.is_some() => untested.push((
@@ -2340,15 +2480,18 @@ pub fn explain(
                 ),
                 None => String::new(),
             };
-            // The refinements of the coolant on the part itself ([`coolant_on_the_part_family`]).
-            let refined = |index: usize| {
+            // The refinements of the coolant on the part itself ([`coolant_on_the_part_family`])
+            // and through a winding ([`coolant_through_the_winding_family`]), by name: each
+            // family lays out its own parameters.
+            let refined = |name: &str| {
+                let index = family.theta_names.iter().position(|n| *n == name)?;
                 family
                     .refinements
                     .iter()
                     .find(|r| r.theta == index && r.used_by(theta))
                     .map(|r| theta[r.theta])
             };
-            let convection = match (convection_of_target(ctx), refined(CONVECTION_SPEEDUP)) {
+            let convection = match (convection_of_target(ctx), refined("convection_speedup")) {
                 (Some((speed, convection)), Some(speedup)) => {
                     let fast = convection.fast_rpm;
                     p.insert("convection_speedup".into(), speedup);
@@ -2360,7 +2503,7 @@ pub fn explain(
                 _ => String::new(),
             };
             // Held coolant: a·c·(T − hi) + b·c·(T − lo) = (a + b)·c·(T − (a·hi + b·lo)/(a + b)).
-            let held = match (held_coolant_range(ctx), refined(COOLANT_HELD)) {
+            let held = match (held_coolant_range(ctx), refined("coolant_held")) {
                 (Some((lo, hi)), Some(_)) => {
                     let (a, b) = (g0, driver(1).0);
                     let held_at = (a * hi + b * lo) / (a + b);
@@ -2369,8 +2512,32 @@ pub fn explain(
                 }
                 _ => String::new(),
             };
+            // The friction heat of the cooler part: the last driver's share of the correction.
+            let friction = match (refined("friction_heat"), family.axis) {
+                (Some(_), Some(axis)) => {
+                    let per_driver = family.driver_columns(theta, 0).len().max(1);
+                    let first = coefficients.len().saturating_sub(per_driver);
+                    let heat: Vec<f64> = (0..ctx.time.len())
+                        .map(|i| {
+                            columns[first..]
+                                .iter()
+                                .zip(&coefficients[first..])
+                                .map(|(c, b)| c[i] * b)
+                                .sum()
+                        })
+                        .collect();
+                    let heat = mean(&heat);
+                    p.insert("friction_heat_effect".into(), heat);
+                    format!(
+                        "; cooled, the bearings' lubricant thickens: the {axis} motor draws more current at speed than simulated (`{}`), whose friction heat adds {:.3}{unit} on average",
+                        axis_column(axis, Quantity::Current),
+                        heat
+                    )
+                }
+                _ => String::new(),
+            };
             format!(
-                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated{through}: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off){convection}{held}",
+                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated{through}: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off){convection}{held}{friction}",
                 average.abs(),
                 extreme.abs(),
                 on_vs_off.abs(),
