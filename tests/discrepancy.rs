@@ -1809,91 +1809,16 @@ fn copper_heat_the_coolant_does_not_reach_is_not_charged_to_the_coolant() {
 /// the twin): a stator (C = 9000 J/K, iron and copper heat) sheds through 15 W/K to a housing
 /// (C = 60000 J/K, 9 W/K to a room at 20 °C) that also holds the front bearing (C = 2500 J/K,
 /// 3 W/K, heated by its drag); while the coolant flows (in 70 % of the cuts) the winding sheds
-/// 14 W/K more to coolant at 21 °C. The simulation lacks the coolant. Returns (sim, real, σ of
-/// the bearing's noise); the real stator is read with 0.05 °C of noise.
-fn spindle_with_a_cooled_winding(seed: u64) -> (Recording, Recording, f64) {
-    let sigma = 0.03;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let (mut sim, mut real) = spindle_recordings(&["ref.S.front_bearing_temp_C"]);
-    let (room, coolant_c) = (20.0, 21.0);
-    // (stator, housing, bearing) of the simulation and of the real machine.
-    let mut simulated = [room; 3];
-    let mut actual = [room; 3];
-    let step = |t: &mut [f64; 3], heat: f64, drag: f64, cooling: f64| {
-        let to_housing = 15.0 * (t[0] - t[1]);
-        let from_bearing = 3.0 * (t[2] - t[1]);
-        t[0] += (heat - to_housing - cooling * (t[0] - coolant_c)) / 9000.0;
-        t[1] += (to_housing + from_bearing - 9.0 * (t[1] - room)) / 60000.0;
-        t[2] += (drag - from_bearing) / 2500.0;
-    };
-    let (mut speed, mut current, mut coolant) = (0.0, 0.0, 0.0);
-    for second in 0..6 * 3600 {
-        if second % 600 == 0 {
-            (speed, current, coolant) = next_operation(&mut rng, 0.7);
-        }
-        let heat = 8.0 * (speed / 1000.0_f64).powf(1.5) + 0.08 * current * current;
-        let drag = 2.0 * (speed / 1000.0_f64).powf(5.0 / 3.0);
-        step(&mut simulated, heat, drag, 0.0);
-        step(&mut actual, heat, drag, 14.0 * coolant);
-        let t = f64::from(second);
-        let stator_noise: f64 = rng.sample(rand_distr::StandardNormal);
-        let bearing_noise: f64 = rng.sample(rand_distr::StandardNormal);
-        sim.push_row(&[t, speed, current, simulated[0], simulated[2], coolant, room])
-            .expect("row");
-        real.push_row(&[
-            t,
-            speed,
-            current,
-            actual[0] + 0.05 * stator_noise,
-            actual[2] + sigma * bearing_noise,
-            coolant,
-            room,
-        ])
-        .expect("row");
-    }
-    (sim, real, sigma)
-}
-
-/// Coolant left out of a spindle whose winding it cools (written above), seen on the front
-/// bearing: the bearing runs cooler because the housing does, and the housing because the
-/// winding sheds into the coolant in proportion to how far it is above it, which the drive
-/// measures. Built on the bearing's own simulated excess, the coolant's correction measured
-/// the wrong part (the simulation's winding runs far hotter): on the independent check's
-/// machine it was beaten by convection, copper heat and a sensor drift (docs/discrepancy.md).
-#[test]
-fn coolant_on_the_winding_is_named_on_the_bearing_beside_it() {
-    let (sim, real, sigma) = spindle_with_a_cooled_winding(5);
-    let report = analyse(
-        &sim,
-        &real,
-        "ref.S.front_bearing_temp_C",
-        &Options::default(),
-    )
-    .unwrap();
-    let coolant = report.findings.first().expect("a finding");
-    assert_eq!(coolant.physics, "coolant", "{}", report.summary());
-    assert!(
-        coolant.signals.iter().any(|s| s == "S.stator_temp_C"),
-        "{}",
-        report.summary()
-    );
-    assert!(
-        coolant
-            .explanation
-            .contains("more than simulated, through the S motor's winding (`S.stator_temp_C`)"),
-        "{}",
-        coolant.explanation
-    );
-    assert!(coolant.parameters["mean_effect"] < 0.0);
-    assert!(report.improved.rmse < 3.0 * sigma, "{}", report.summary());
-}
-
-/// The spindle above with a chiller and a bearing whose lubricant thins as it warms: the
-/// coolant is held at 21 °C while the room swings 1 K either way over the shift, and the
-/// bearing's drag (and the current it draws) falls by e^(−ΔT / 25 K) as it warms. The
-/// simulation, without the coolant, runs the bearing warmer, so with thinner lubricant and
-/// less drag than the real one. Returns (sim, real, σ of the bearing's noise).
-fn spindle_with_a_chiller_and_viscous_bearing(seed: u64) -> (Recording, Recording, f64) {
+/// 14 W/K more to coolant at 21 °C. The simulation lacks the coolant. With
+/// `chiller_and_viscous_bearing`, the room swings 1 K either way over the shift (the coolant
+/// stays at 21 °C) and the bearing's drag, and the current it draws, fall by e^(−ΔT / 25 K) as
+/// it warms: the simulation, without the coolant, runs the bearing warmer, with thinner
+/// lubricant and less drag than the real one. Returns (sim, real, σ of the bearing's noise);
+/// the real stator is read with 0.05 °C of noise.
+fn spindle_with_a_cooled_winding(
+    seed: u64,
+    chiller_and_viscous_bearing: bool,
+) -> (Recording, Recording, f64) {
     let sigma = 0.03;
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let (mut sim, mut real) = spindle_recordings(&["ref.S.front_bearing_temp_C"]);
@@ -1901,7 +1826,10 @@ fn spindle_with_a_chiller_and_viscous_bearing(seed: u64) -> (Recording, Recordin
     // (stator, housing, bearing) of the simulation and of the real machine.
     let mut simulated = [20.0; 3];
     let mut actual = [20.0; 3];
-    let thinning = |bearing: f64| (-(bearing - 30.0) / 25.0_f64).exp();
+    let thinning = |bearing: f64| match chiller_and_viscous_bearing {
+        true => (-(bearing - 30.0) / 25.0_f64).exp(),
+        false => 1.0,
+    };
     let step = |t: &mut [f64; 3], room: f64, heat: f64, drag: f64, cooling: f64| {
         let to_housing = 15.0 * (t[0] - t[1]);
         let from_bearing = 3.0 * (t[2] - t[1]);
@@ -1915,12 +1843,19 @@ fn spindle_with_a_chiller_and_viscous_bearing(seed: u64) -> (Recording, Recordin
             (speed, cut_current, coolant) = next_operation(&mut rng, 0.7);
         }
         let t = f64::from(second);
-        let room = 20.0 + 1.0 * (std::f64::consts::TAU * t / (6.0 * 3600.0)).sin();
+        let room = match chiller_and_viscous_bearing {
+            true => 20.0 + (std::f64::consts::TAU * t / (6.0 * 3600.0)).sin(),
+            false => 20.0,
+        };
         let krpm = speed / 1000.0_f64;
-        // Drag torque (∝ n^(2/3)) draws current; its heat (torque × speed) stays in the bearing.
+        // The drag torque (∝ n^(2/3)) of a viscous bearing draws current; its heat (torque
+        // × speed) stays in the bearing.
         let run = |t: &mut [f64; 3], cooling: f64| -> f64 {
             let thin = thinning(t[2]);
-            let current = cut_current + 2.0 * thin * krpm.powf(2.0 / 3.0);
+            let current = match chiller_and_viscous_bearing {
+                true => cut_current + 2.0 * thin * krpm.powf(2.0 / 3.0),
+                false => cut_current,
+            };
             let heat = 8.0 * krpm.powf(1.5) + 0.08 * current * current;
             step(t, room, heat, 2.0 * thin * krpm.powf(5.0 / 3.0), cooling);
             current
@@ -1953,15 +1888,50 @@ fn spindle_with_a_chiller_and_viscous_bearing(seed: u64) -> (Recording, Recordin
     (sim, real, sigma)
 }
 
-/// Coolant left out of that spindle, seen on the front bearing. Taken to follow the room and
-/// to change nothing else, the coolant through the winding leaves 9.9 σ held out; the refit
-/// after the selection reads the coolant held at its own temperature (20.2 °C) and the
-/// friction heat of the cooler, stiffer bearing from the current it draws beyond the
-/// simulated one, and leaves 4.1 σ. Not the noise yet: the friction heat enters the bearing
-/// itself, and the coolant's lags through the housing are the only ones it is given.
+/// Coolant left out of a spindle whose winding it cools (written above), seen on the front
+/// bearing: the bearing runs cooler because the housing does, and the housing because the
+/// winding sheds into the coolant in proportion to how far it is above it, which the drive
+/// measures. Built on the bearing's own simulated excess, the coolant's correction measured
+/// the wrong part (the simulation's winding runs far hotter): on the independent check's
+/// machine it was beaten by convection, copper heat and a sensor drift (docs/discrepancy.md).
+#[test]
+fn coolant_on_the_winding_is_named_on_the_bearing_beside_it() {
+    let (sim, real, sigma) = spindle_with_a_cooled_winding(5, false);
+    let report = analyse(
+        &sim,
+        &real,
+        "ref.S.front_bearing_temp_C",
+        &Options::default(),
+    )
+    .unwrap();
+    let coolant = report.findings.first().expect("a finding");
+    assert_eq!(coolant.physics, "coolant", "{}", report.summary());
+    assert!(
+        coolant.signals.iter().any(|s| s == "S.stator_temp_C"),
+        "{}",
+        report.summary()
+    );
+    assert!(
+        coolant
+            .explanation
+            .contains("more than simulated, through the S motor's winding (`S.stator_temp_C`)"),
+        "{}",
+        coolant.explanation
+    );
+    assert!(coolant.parameters["mean_effect"] < 0.0);
+    assert!(report.improved.rmse < 3.0 * sigma, "{}", report.summary());
+}
+
+/// Coolant left out of that spindle with a chiller and a viscous bearing, seen on the front
+/// bearing. Taken to follow the room and to change nothing else, the coolant through the
+/// winding leaves 9.9 σ held out; the refit after the selection reads the coolant held at its
+/// own temperature (20.2 °C) and the friction heat of the cooler, stiffer bearing from the
+/// current it draws beyond the simulated one, and leaves 4.1 σ. Not the noise yet: the
+/// friction heat enters the bearing itself, and the coolant's lags through the housing are
+/// the only ones it is given.
 #[test]
 fn coolant_held_by_a_chiller_on_a_winding_is_read_with_the_friction_it_leaves() {
-    let (sim, real, sigma) = spindle_with_a_chiller_and_viscous_bearing(5);
+    let (sim, real, sigma) = spindle_with_a_cooled_winding(5, true);
     let report = analyse(
         &sim,
         &real,
