@@ -1896,7 +1896,18 @@ fn spindle_with_a_cooled_winding(
 /// machine it was beaten by convection, copper heat and a sensor drift (docs/discrepancy.md).
 #[test]
 fn coolant_on_the_winding_is_named_on_the_bearing_beside_it() {
-    let (sim, real, sigma) = spindle_with_a_cooled_winding(5, false);
+    let (report, sigma) = coolant_named_on_the_cooled_windings_bearing(false);
+    let coolant = &report.findings[0];
+    assert!(coolant.parameters["mean_effect"] < 0.0);
+    assert!(report.improved.rmse < 3.0 * sigma, "{}", report.summary());
+}
+
+/// The front bearing's report of [`spindle_with_a_cooled_winding`] (seed 5), with the σ of the
+/// bearing's noise, after checking that it names coolant first, through the winding.
+fn coolant_named_on_the_cooled_windings_bearing(
+    chiller_and_viscous_bearing: bool,
+) -> (DiscrepancyReport, f64) {
+    let (sim, real, sigma) = spindle_with_a_cooled_winding(5, chiller_and_viscous_bearing);
     let report = analyse(
         &sim,
         &real,
@@ -1918,8 +1929,7 @@ fn coolant_on_the_winding_is_named_on_the_bearing_beside_it() {
         "{}",
         coolant.explanation
     );
-    assert!(coolant.parameters["mean_effect"] < 0.0);
-    assert!(report.improved.rmse < 3.0 * sigma, "{}", report.summary());
+    (report, sigma)
 }
 
 /// Coolant left out of that spindle with a chiller and a viscous bearing, seen on the front
@@ -1931,23 +1941,8 @@ fn coolant_on_the_winding_is_named_on_the_bearing_beside_it() {
 /// the only ones it is given.
 #[test]
 fn coolant_held_by_a_chiller_on_a_winding_is_read_with_the_friction_it_leaves() {
-    let (sim, real, sigma) = spindle_with_a_cooled_winding(5, true);
-    let report = analyse(
-        &sim,
-        &real,
-        "ref.S.front_bearing_temp_C",
-        &Options::default(),
-    )
-    .unwrap();
-    let coolant = report.findings.first().expect("a finding");
-    assert_eq!(coolant.physics, "coolant", "{}", report.summary());
-    assert!(
-        coolant
-            .explanation
-            .contains("through the S motor's winding"),
-        "{}",
-        coolant.explanation
-    );
+    let (report, sigma) = coolant_named_on_the_cooled_windings_bearing(true);
+    let coolant = &report.findings[0];
     let held = coolant.parameters["coolant_temperature_C"];
     assert!((held - 21.0).abs() < 1.0, "{}", coolant.explanation);
     assert!(
