@@ -377,11 +377,16 @@ impl ModelGram {
     }
 
     fn zty_sum(&self, stats: &TargetStats<'_>, range: Range<usize>) -> Vec<f64> {
-        stats
-            .zty
-            .iter()
-            .map(|col| col[range.clone()].iter().sum())
-            .collect()
+        let mut sums = vec![0.0; stats.zty.len()];
+        Self::zty_sum_into(stats, range, &mut sums);
+        sums
+    }
+
+    /// [`ModelGram::zty_sum`] written into `sums` (see `cholesky_solve_in_place`).
+    fn zty_sum_into(stats: &TargetStats<'_>, range: Range<usize>, sums: &mut [f64]) {
+        for (sum, col) in sums.iter_mut().zip(&stats.zty) {
+            *sum = col[range.clone()].iter().sum();
+        }
     }
 
     /// Least-squares coefficients on all rows, `None` when the columns are degenerate.
@@ -402,17 +407,16 @@ impl ModelGram {
         // `cholesky_solve_in_place`).
         let mut beta = vec![0.0; self.p];
         let mut test = vec![0.0; self.p];
-        let sum = |col: &[f64], range: Range<usize>| -> f64 { col[range].iter().sum() };
         let mut sse = 0.0;
         for (fold, factor) in blocks.folds.iter().zip(&self.folds) {
             let l = factor.training_factor.as_ref()?;
-            for ((b, t), col) in beta.iter_mut().zip(&total).zip(&stats.zty) {
-                *b = t - sum(col, fold.excluded.clone());
+            // The training sums: all blocks' less the excluded ones'.
+            Self::zty_sum_into(stats, fold.excluded.clone(), &mut beta);
+            for (b, t) in beta.iter_mut().zip(&total) {
+                *b = t - *b;
             }
             cholesky_solve_in_place(l, self.p, &mut beta);
-            for (t, col) in test.iter_mut().zip(&stats.zty) {
-                *t = sum(col, fold.test.clone());
-            }
+            Self::zty_sum_into(stats, fold.test.clone(), &mut test);
             let yty: f64 = stats.yty[fold.test.clone()].iter().sum();
             let cross: f64 = beta.iter().zip(&test).map(|(b, t)| b * t).sum();
             sse += yty - 2.0 * cross + quadratic(&factor.test_gram, self.p, &beta);

@@ -8,11 +8,11 @@
 //! τ; delays are estimated, never assumed.
 
 use std::collections::BTreeMap;
-use std::collections::HashMap;
 use std::fmt;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 
 use super::align::{Index, index_onto, interpolate};
+use super::kept::Kept;
 use super::series::{
     legendre, lowpass_on_grid, lowpass_switched, mean, quantile, robust_sigma, shifted, smooth_sign,
 };
@@ -306,23 +306,22 @@ const COOLANT_LAGS_BUDGET: usize = 8 << 20;
 /// alone, the same in every state of the part, while the joint refit scores hundreds of its
 /// members in each round: kept, each lag at the grid's time constants is built once instead
 /// of once per member. Past [`COOLANT_LAGS_BUDGET`] nothing more is kept.
-#[derive(Default)]
 struct CoolantLags {
-    kept: Mutex<KeptLags>,
+    /// By (τ, speed-up) bits; sized in values.
+    kept: Kept<(u64, u64), Arc<Vec<f64>>>,
 }
 
-#[derive(Default)]
-struct KeptLags {
-    /// By (τ, speed-up) bits.
-    lags: HashMap<(u64, u64), Arc<Vec<f64>>>,
-    /// Values held.
-    values: usize,
+impl Default for CoolantLags {
+    fn default() -> Self {
+        CoolantLags {
+            kept: Kept::new(COOLANT_LAGS_BUDGET),
+        }
+    }
 }
 
 impl CoolantLags {
-    /// The lag at (`tau`, `speedup`), built by `build` when it is not kept. The lock is not
-    /// held while building: another thread may build the same lag meanwhile, to the same
-    /// values.
+    /// The lag at (`tau`, `speedup`), built by `build` when it is not kept. Another thread may
+    /// build the same lag meanwhile, to the same values.
     fn get_or_build(
         &self,
         tau: f64,
@@ -330,27 +329,20 @@ impl CoolantLags {
         build: impl FnOnce() -> Vec<f64>,
     ) -> Arc<Vec<f64>> {
         let key = (tau.to_bits(), speedup.to_bits());
-        // A poisoned lock only means another thread panicked mid-insert: build without it.
-        if let Ok(kept) = self.kept.lock()
-            && let Some(lag) = kept.lags.get(&key)
-        {
-            return Arc::clone(lag);
+        if let Some(lag) = self.kept.get(&key) {
+            return lag;
         }
         let lag = Arc::new(build());
-        if let Ok(mut kept) = self.kept.lock()
-            && kept.values + lag.len() <= COOLANT_LAGS_BUDGET
-            && kept.lags.insert(key, Arc::clone(&lag)).is_none()
-        {
-            kept.values += lag.len();
-        }
+        self.kept.keep(key, &lag, lag.len());
         lag
     }
 }
 
 impl fmt::Debug for CoolantLags {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let kept = self.kept.lock().map_or(0, |k| k.lags.len());
-        f.debug_struct("CoolantLags").field("kept", &kept).finish()
+        f.debug_struct("CoolantLags")
+            .field("kept", &self.kept.len())
+            .finish()
     }
 }
 

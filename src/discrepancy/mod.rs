@@ -35,13 +35,14 @@
 pub mod align;
 pub mod censor;
 pub mod cv;
+pub mod kept;
 pub mod library;
 pub mod localise;
 pub mod report;
 pub mod select;
 pub mod series;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -893,17 +894,18 @@ const FIXED_MEMBERS_BUDGET: usize = 8 << 20;
 /// context and bins; the kept columns are the very ones a build would give, so keeping them
 /// changes no figure. The analysis starts it with the selection's candidates of fixed shape,
 /// built the same way. Past [`FIXED_MEMBERS_BUDGET`] nothing more is kept.
-#[derive(Clone, Default)]
+#[derive(Clone)]
 struct FixedMembers {
-    kept: Arc<Mutex<KeptMembers>>,
+    /// By (family, the parameters' bits); sized in bin values.
+    kept: Arc<kept::Kept<(usize, Vec<u64>), BinnedMember>>,
 }
 
-#[derive(Default)]
-struct KeptMembers {
-    /// By (family, the parameters' bits).
-    members: HashMap<(usize, Vec<u64>), BinnedMember>,
-    /// Bin values held.
-    values: usize,
+impl Default for FixedMembers {
+    fn default() -> Self {
+        FixedMembers {
+            kept: Arc::new(kept::Kept::new(FIXED_MEMBERS_BUDGET)),
+        }
+    }
 }
 
 impl FixedMembers {
@@ -912,27 +914,12 @@ impl FixedMembers {
     }
 
     fn get(&self, family: usize, theta: &[f64]) -> Option<BinnedMember> {
-        let kept = self.kept.lock().ok()?;
-        kept.members.get(&Self::key(family, theta)).cloned()
+        self.kept.get(&Self::key(family, theta))
     }
 
     fn keep(&self, family: usize, theta: &[f64], member: &BinnedMember) {
-        // A poisoned lock only means another thread panicked mid-insert; the analysis goes on
-        // building its members without the store.
-        let Ok(mut kept) = self.kept.lock() else {
-            return;
-        };
         let values: usize = member.iter().map(|(c, _)| c.len()).sum();
-        if kept.values + values > FIXED_MEMBERS_BUDGET {
-            return;
-        }
-        if kept
-            .members
-            .insert(Self::key(family, theta), Arc::clone(member))
-            .is_none()
-        {
-            kept.values += values;
-        }
+        self.kept.keep(Self::key(family, theta), member, values);
     }
 }
 
