@@ -415,36 +415,21 @@ fn a_heavier_nut_that_the_coolant_cools_is_named_as_thermal_inertia_and_fitted()
         nut_coolant: true,
         ..REAL
     };
-    let sim = feed_axis_csv(
+    // A lag of one rate leaves 1.33 × the thermometer's noise.
+    let inertia = nut_finding_named_and_fitted(
         29,
         Physics {
             noisy: false,
             ..cooled
         },
-    );
-    let real = feed_axis_csv(
-        29,
         Physics {
             nut_capacity_scale: 1.6,
             ..cooled
         },
+        "thermal_inertia",
     );
-    let report = compare(&sim, &real, "ref.X.nut_temp_C");
-    assert_named_first(&report, "thermal_inertia");
-    // Held out within 1.2 × the thermometer's noise (0.03 °C): a lag of one rate leaves 1.33 ×.
-    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
-    assert!(rmse < 1.2 * 0.03, "held-out RMSE {rmse} °C");
-    let inertia = &report["findings"][0];
-    let speedup = inertia["parameters"]["coolant_speedup"]
-        .as_f64()
-        .unwrap_or_else(|| panic!("no coolant speed-up in {inertia}"));
-    assert!(speedup > 0.0, "{inertia}");
-    assert!(
-        inertia["explanation"]
-            .as_str()
-            .is_some_and(|e| e.contains("faster while the coolant")),
-        "{inertia}"
-    );
+    assert!(parameter(&inertia, "coolant_speedup") > 0.0, "{inertia}");
+    assert_explains(&inertia, "faster while the coolant");
 }
 
 /// The room's daily swing (3 K) left out of a simulation of a nut that the coolant, at room
@@ -458,34 +443,23 @@ fn the_room_on_a_nut_the_coolant_cools_is_named_and_fitted() {
         nut_coolant: true,
         ..REAL
     };
-    let sim = feed_axis_csv(
+    let room = nut_finding_named_and_fitted(
         31,
         Physics {
             noisy: false,
             room_swing_k: 0.0,
             ..cooled
         },
-    );
-    let real = feed_axis_csv(
-        31,
         Physics {
             room_swing_k: 3.0,
             ..cooled
         },
+        "ambient_temperature",
     );
-    let report = compare(&sim, &real, "ref.X.nut_temp_C");
-    assert_named_first(&report, "ambient_temperature");
-    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
-    assert!(rmse < 1.2 * 0.03, "held-out RMSE {rmse} °C");
-    let room = &report["findings"][0];
-    let parameter = |name: &str| {
-        room["parameters"][name]
-            .as_f64()
-            .unwrap_or_else(|| panic!("no {name} in {room}"))
-    };
-    assert!(parameter("coolant_speedup") > 0.0, "{room}");
+    assert!(parameter(&room, "coolant_speedup") > 0.0, "{room}");
     // As far with the coolant flowing as with it off.
-    let following = parameter("gain_per_K_while_coolant_flows") / parameter("gain_per_K");
+    let following =
+        parameter(&room, "gain_per_K_while_coolant_flows") / parameter(&room, "gain_per_K");
     assert!((0.9..1.1).contains(&following), "{room}");
 }
 
@@ -501,36 +475,20 @@ fn coolant_on_a_nut_the_air_cools_faster_at_speed_is_named_and_fitted() {
         nut_convection: Convection::GrowingWithSpeed,
         ..REAL
     };
-    let sim = feed_axis_csv(
+    let coolant = nut_finding_named_and_fitted(
         37,
         Physics {
             noisy: false,
             ..convected
         },
-    );
-    let real = feed_axis_csv(
-        37,
         Physics {
             nut_coolant: true,
             ..convected
         },
+        "coolant",
     );
-    let report = compare(&sim, &real, "ref.X.nut_temp_C");
-    assert_named_first(&report, "coolant");
-    // Held out within 1.2 × the thermometer's noise (0.03 °C).
-    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
-    assert!(rmse < 1.2 * 0.03, "held-out RMSE {rmse} °C");
-    let coolant = &report["findings"][0];
-    let speedup = coolant["parameters"]["convection_speedup"]
-        .as_f64()
-        .unwrap_or_else(|| panic!("no convection speed-up in {coolant}"));
-    assert!(speedup > 0.0, "{coolant}");
-    assert!(
-        coolant["explanation"]
-            .as_str()
-            .is_some_and(|e| e.contains("`X.speed_rpm`")),
-        "{coolant}"
-    );
+    assert!(parameter(&coolant, "convection_speedup") > 0.0, "{coolant}");
+    assert_explains(&coolant, "`X.speed_rpm`");
 }
 
 /// Coolant held at 21 °C by a chiller, left out of a simulation of a nut it cools in most cuts
@@ -545,35 +503,57 @@ fn coolant_a_chiller_holds_is_named_with_its_temperature() {
         room_swing_k: 3.0,
         ..REAL
     };
-    let sim = feed_axis_csv(
+    let coolant = nut_finding_named_and_fitted(
         41,
         Physics {
             noisy: false,
             ..swinging
         },
-    );
-    let real = feed_axis_csv(
-        41,
         Physics {
             nut_coolant: true,
             coolant_held_c: Some(21.0),
             ..swinging
         },
+        "coolant",
     );
-    let report = compare(&sim, &real, "ref.X.nut_temp_C");
-    assert_named_first(&report, "coolant");
-    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
-    // Held out within 1.2 × the thermometer's noise (0.03 °C).
-    assert!(rmse < 1.2 * 0.03, "held-out RMSE {rmse} °C");
-    let coolant = &report["findings"][0];
-    let held_at = coolant["parameters"]["coolant_temperature_C"]
-        .as_f64()
-        .unwrap_or_else(|| panic!("no coolant temperature in {coolant}"));
+    let held_at = parameter(&coolant, "coolant_temperature_C");
     assert!((held_at - 21.0).abs() < 0.5, "{coolant}");
+    assert_explains(&coolant, "not following the room");
+}
+
+/// The nut's first finding for the simulation `sim` and the real run `real` of the feed axis
+/// (both of seed `seed`), after checking that it names `physics` and that the corrected
+/// simulation predicts the held-out blocks within 1.2 × the thermometer's noise (0.03 °C).
+fn nut_finding_named_and_fitted(
+    seed: u64,
+    sim: Physics,
+    real: Physics,
+    physics: &str,
+) -> serde_json::Value {
+    let report = compare(
+        &feed_axis_csv(seed, sim),
+        &feed_axis_csv(seed, real),
+        "ref.X.nut_temp_C",
+    );
+    assert_named_first(&report, physics);
+    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
+    assert!(rmse < 1.2 * 0.03, "held-out RMSE {rmse} °C");
+    report["findings"][0].clone()
+}
+
+/// A finding's parameter `name`, which it must report.
+fn parameter(finding: &serde_json::Value, name: &str) -> f64 {
+    finding["parameters"][name]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no {name} in {finding}"))
+}
+
+/// The finding's explanation says `text`.
+fn assert_explains(finding: &serde_json::Value, text: &str) {
     assert!(
-        coolant["explanation"]
+        finding["explanation"]
             .as_str()
-            .is_some_and(|e| e.contains("not following the room")),
-        "{coolant}"
+            .is_some_and(|e| e.contains(text)),
+        "{finding}"
     );
 }
