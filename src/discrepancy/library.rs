@@ -245,6 +245,23 @@ impl AxisSignals {
     }
 }
 
+/// The time constant (s) with which the surroundings a part sheds its convected heat into may
+/// warm with it ([`Physics::SpeedDependentCooling`] on a temperature): a motor's stator sheds
+/// the air gap's heat into a rotor and a housing that follow it over tens of minutes, not
+/// into the room.
+const SURROUNDINGS_TAU_S: f64 = 1800.0;
+
+/// The nonlinear parameter of a [`Physics::SpeedDependentCooling`] member that is positive
+/// where the share its surroundings reach is fitted.
+const SURROUNDINGS_FITTED: usize = 4;
+
+/// The share of the part's rise its surroundings are taken to reach while the selection
+/// compares candidates: half, as for a housing that passes on to the room about as much as
+/// it takes from the part. The refit after the selection fits the share
+/// ([`Family::refinements`]); offered to the selection, the fitted share's two more columns
+/// made convection tie with drag heat and give way to it (the independent check's seed 1).
+const SURROUNDINGS_SHARE: f64 = 0.5;
+
 /// (|n|/1000)^`exponent` of a speed in rpm, row by row.
 fn speed_power(speed: &[f64], exponent: f64) -> Vec<f64> {
     speed
@@ -426,8 +443,9 @@ pub struct GainLimit {
     pub min: f64,
     /// Inclusive upper limit.
     pub max: f64,
-    /// Only for the members that use the refinement at this nonlinear parameter
-    /// ([`Refinement::theta`]): their driver means something else than the other members'.
+    /// Only for the members whose nonlinear parameter at this index is positive (a
+    /// refinement, [`Refinement::theta`], or a form of the family that adds drivers): their
+    /// driver means something else than the other members'.
     pub refined_by: Option<usize>,
     /// `driver` counts back from the member's last driver (0 the last): a refinement's
     /// driver comes after those of the member it refines, whose number varies.
@@ -1833,14 +1851,36 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             // room): elsewhere its share of the target's own excess is any change of the
             // target's thermal gain.
             let nominal_forms: &[f64] = if temperature { &[0.0, 1.0] } else { &[0.0] };
+            // The surroundings the part sheds its heat into (the time constant of their
+            // warming, s, and whether their share of the part's rise is fitted): the room
+            // (0), or — on a motor's winding, with one lag — the rotor and housing around its
+            // air gap, which warm with it. Elsewhere the part is taken to shed into the air
+            // of the room: offered on a spindle's front bearing, the surroundings' slow
+            // warming took the room's share where both were left out (the twin's grid, coolant
+            // and room, seeds 202 and 204).
+            let surroundings: &[[f64; 2]] =
+                if temperature && site == Site::Motor && SURROUNDINGS_TAU_S <= 0.5 * ctx.duration_s
+                {
+                    &[
+                        [0.0, 0.0],
+                        [SURROUNDINGS_TAU_S, 0.0],
+                        [SURROUNDINGS_TAU_S, 1.0],
+                    ]
+                } else {
+                    &[[0.0, 0.0]]
+                };
             let mut grid = Vec::new();
             for member in thermal_grid(&taus, &[0.5, 0.8]) {
                 for &nominal in nominal_forms {
-                    // One lag: the changed convection acts on the part's own heat balance.
-                    if nominal > 0.0 && member[2] > 0.0 {
-                        continue;
+                    for &[around, fitted] in surroundings {
+                        // One lag: the changed convection acts on the part's own heat balance.
+                        if (nominal > 0.0 || around > 0.0) && member[2] > 0.0 {
+                            continue;
+                        }
+                        grid.push(vec![
+                            member[0], member[1], nominal, around, fitted, member[2],
+                        ]);
                     }
-                    grid.push(vec![member[0], member[1], nominal, member[2]]);
                 }
             }
             // A simulation's constant coefficient stands for a speed the machine runs at. The
@@ -1852,10 +1892,17 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             // drift was named as convection kept at 230–550 rpm, below nearly every speed
             // the spindle ran at, before the slowest tenth bounded it).
             let (slow, fast) = running_speed_span(&axis_signals.speed);
-            out.push(state_dependent(thermal_family(
+            let mut convection = thermal_family(
                 Physics::SpeedDependentCooling,
                 vec![speed_name.clone(), simulated.clone()],
-                vec!["tau_s", "exponent", "nominal", "lag_ratio"],
+                vec![
+                    "tau_s",
+                    "exponent",
+                    "nominal",
+                    "surroundings_tau_s",
+                    "surroundings_share_fitted",
+                    "lag_ratio",
+                ],
                 grid,
                 Box::new(move |ctx, theta| {
                     let Some(a) = ctx.axis(axis) else {
@@ -1872,36 +1919,81 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     let floor = from(slow);
                     let spin: Vec<f64> =
                         a.speed_power(theta[1]).iter().map(|p| p - floor).collect();
-                    let cooling: Vec<f64> =
-                        spin.iter().zip(&ctx.excess).map(|(s, e)| s * e).collect();
+                    let times = |driver: &[f64], below: f64| -> Vec<f64> {
+                        spin.iter()
+                            .zip(driver)
+                            .map(|(s, d)| (s - below) * d)
+                            .collect()
+                    };
+                    // Surroundings of a fixed share cool the part as far as it is above them;
+                    // those of a fitted share take back a share of each cooling term (the same
+                    // speed terms times their warmth, a lag of the part's rise).
+                    let warmth = (theta[3] > 0.0)
+                        .then(|| accumulated(ctx, &ctx.excess, theta[3], Start::Equilibrium));
+                    let fitted_share = theta[4] > 0.0;
+                    let above: std::borrow::Cow<'_, [f64]> = match &warmth {
+                        Some(w) if !fitted_share => ctx
+                            .excess
+                            .iter()
+                            .zip(w)
+                            .map(|(e, w)| e - SURROUNDINGS_SHARE * w)
+                            .collect(),
+                        _ => std::borrow::Cow::Borrowed(&ctx.excess),
+                    };
+                    let cooling = times(&above, 0.0);
                     // The extra cooling lowers the very temperature it acts on. Once a
                     // correction is fitted this family is rebuilt on the corrected state
                     // (`state_dependent`), which makes that feedback self-consistent; before
                     // that, while the candidates compete, the second driver stands for it (the
                     // next term of the series), with its own coefficient.
                     let lowered = accumulated(ctx, &cooling, theta[0], Start::Rest);
-                    let feedback = spin.iter().zip(&lowered).map(|(s, l)| s * l).collect();
-                    if nominal {
-                        let below_fast = from(fast) - from(slow);
-                        let cooling_from_fast = spin
-                            .iter()
-                            .zip(&ctx.excess)
-                            .map(|(s, e)| (s - below_fast) * e)
-                            .collect();
-                        vec![cooling, feedback, cooling_from_fast]
+                    let feedback = times(&lowered, 0.0);
+                    let below_fast = from(fast) - from(slow);
+                    let mut drivers = if nominal {
+                        vec![cooling, feedback, times(&above, below_fast)]
                     } else {
                         vec![cooling, feedback]
+                    };
+                    if let Some(w) = warmth.filter(|_| fitted_share) {
+                        drivers.push(times(&w, 0.0));
+                        if nominal {
+                            drivers.push(times(&w, below_fast));
+                        }
                     }
+                    drivers
                 }),
-                // Cooling grows with speed, in both terms of the nominal form (see above).
+                // Cooling grows with speed, in both terms of the nominal form (see above), and
+                // surroundings of a fitted share take some of it back (the last driver, and
+                // the one before it in the nominal form).
                 if temperature {
-                    vec![GainLimit::negative(0), GainLimit::negative(2)]
+                    vec![
+                        GainLimit::negative(0),
+                        GainLimit {
+                            refined_by: Some(2),
+                            ..GainLimit::negative(2)
+                        },
+                        GainLimit {
+                            refined_by: Some(SURROUNDINGS_FITTED),
+                            ..GainLimit::positive(0).from_end()
+                        },
+                        GainLimit {
+                            refined_by: Some(SURROUNDINGS_FITTED),
+                            ..GainLimit::positive(3)
+                        },
+                    ]
                 } else {
                     Vec::new()
                 },
                 Some(axis),
                 Start::Rest,
-            )));
+            );
+            if temperature {
+                convection.refinements = vec![Refinement {
+                    theta: SURROUNDINGS_FITTED,
+                    signal: None,
+                }];
+            }
+            out.push(state_dependent(convection));
             if site == Site::Screw {
                 // The motor's losses stay at the motor end of the screw; what warms the
                 // screw and its nut is the screw's own friction.
@@ -2546,6 +2638,35 @@ pub fn explain(
             let (g_fast, _) = driver(2);
             let growth = if nominal { g0 + g_fast } else { g0 };
             p.insert("relative_change_at_1000rpm".into(), growth);
+            // Warm surroundings take back a share of each cooling term (the drivers after
+            // the cooling ones); the share of the part's rise they reach is that share.
+            let surroundings_s = theta.get(3).copied().unwrap_or(0.0);
+            let fitted_share = theta.get(SURROUNDINGS_FITTED).is_some_and(|f| *f > 0.0);
+            let into = if surroundings_s > 0.0 {
+                let taken_back = if nominal {
+                    driver(3).0 + driver(4).0
+                } else {
+                    driver(2).0
+                };
+                let share = match fitted_share {
+                    false => SURROUNDINGS_SHARE,
+                    true if growth.abs() > 1e-12 => -taken_back / growth,
+                    true => 0.0,
+                };
+                p.insert("surroundings_share".into(), share);
+                p.insert("surroundings_tau_min".into(), surroundings_s / 60.0);
+                let reach = if fitted_share {
+                    format!("to {:.0} % of its rise", 100.0 * share)
+                } else {
+                    format!("with it (taken as {:.0} % of its rise)", 100.0 * share)
+                };
+                format!(
+                    ", shed into surroundings that warm {reach} through τ = {:.0} min",
+                    surroundings_s / 60.0
+                )
+            } else {
+                String::new()
+            };
             if nominal && growth < 0.0 {
                 let (slow, fast) = ctx
                     .axis_of(family.axis)
@@ -2555,12 +2676,12 @@ pub fn explain(
                 let nominal_rpm = 1000.0 * at.max(0.0).powf(1.0 / exponent);
                 p.insert("simulated_at_rpm".into(), nominal_rpm);
                 format!(
-                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}) where the simulation keeps the value for {nominal_rpm:.0} rpm: the {target}'s rise above its reference changes by {:+.1} % per (1000 rpm)^{exponent} from there, settling with τ = {tau_min:.0} min",
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}) where the simulation keeps the value for {nominal_rpm:.0} rpm: the {target}'s rise above its reference changes by {:+.1} % per (1000 rpm)^{exponent} from there, settling with τ = {tau_min:.0} min{into}",
                     100.0 * growth
                 )
             } else {
                 format!(
-                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with τ = {tau_min:.0} min",
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with τ = {tau_min:.0} min{into}",
                     100.0 * growth
                 )
             }
