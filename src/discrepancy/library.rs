@@ -1877,6 +1877,12 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         if (nominal > 0.0 || around > 0.0) && member[2] > 0.0 {
                             continue;
                         }
+                        // Surroundings warm more slowly than the part they take its heat
+                        // from, and the flow in a spinning motor's air gap is turbulent
+                        // (Taylor–Couette): n^0.8.
+                        if around > 0.0 && (member[0] >= around || member[1] != 0.8) {
+                            continue;
+                        }
                         grid.push(vec![
                             member[0], member[1], nominal, around, fitted, member[2],
                         ]);
