@@ -2659,7 +2659,13 @@ pub fn explain(
                     true if growth.abs() > 1e-12 => -taken_back / growth,
                     true => 0.0,
                 };
-                p.insert("surroundings_share".into(), share);
+                // A share taken, not fitted, is not reported as a fitted parameter.
+                let share_name = if fitted_share {
+                    "surroundings_share"
+                } else {
+                    "surroundings_share_assumed"
+                };
+                p.insert(share_name.into(), share);
                 p.insert("surroundings_tau_min".into(), surroundings_s / 60.0);
                 let reach = if fitted_share {
                     format!("to {:.0} % of its rise", 100.0 * share)
