@@ -176,9 +176,20 @@ struct Convection {
     share: Vec<f64>,
 }
 
+/// Forced convection grows with the speed as Nu ∝ Re^0.5 where the flow is laminar…
+const LAMINAR_CONVECTION: f64 = 0.5;
+
+/// …and as Re^0.8 where it is turbulent (a spinning motor's air gap, Taylor–Couette flow).
+const TURBULENT_CONVECTION: f64 = 0.8;
+
 /// Exponents of the speed (in 1000 rpm) that the library's physics uses: forced convection
-/// (laminar 0.5, turbulent 0.8), Palmgren's drag torque (2/3) and its heat (5/3).
-const SPEED_EXPONENTS: [f64; 4] = [0.5, 0.8, 2.0 / 3.0, 5.0 / 3.0];
+/// (laminar, turbulent), Palmgren's drag torque (2/3) and its heat (5/3).
+const SPEED_EXPONENTS: [f64; 4] = [
+    LAMINAR_CONVECTION,
+    TURBULENT_CONVECTION,
+    2.0 / 3.0,
+    5.0 / 3.0,
+];
 
 impl AxisSignals {
     /// The axis's signals, with the powers of its speed that the library uses.
@@ -220,9 +231,9 @@ impl AxisSignals {
                 if fast.is_nan() || fast <= 0.0 {
                     return None;
                 }
-                let scale = (fast / 1000.0).powf(0.8) / CONVECTION_SHARE_STEPS;
+                let scale = (fast / 1000.0).powf(TURBULENT_CONVECTION) / CONVECTION_SHARE_STEPS;
                 let share = self
-                    .speed_power(0.8)
+                    .speed_power(TURBULENT_CONVECTION)
                     .iter()
                     .map(|p| (p / scale).round() / CONVECTION_SHARE_STEPS)
                     .collect();
@@ -1870,7 +1881,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     &[[0.0, 0.0]]
                 };
             let mut grid = Vec::new();
-            for member in thermal_grid(&taus, &[0.5, 0.8]) {
+            for member in thermal_grid(&taus, &[LAMINAR_CONVECTION, TURBULENT_CONVECTION]) {
                 for &nominal in nominal_forms {
                     for &[around, fitted] in surroundings {
                         // One lag: the changed convection acts on the part's own heat balance.
@@ -1878,9 +1889,10 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                             continue;
                         }
                         // Surroundings warm more slowly than the part they take its heat
-                        // from, and the flow in a spinning motor's air gap is turbulent
-                        // (Taylor–Couette): n^0.8.
-                        if around > 0.0 && (member[0] >= around || member[1] != 0.8) {
+                        // from, and the flow in a spinning motor's air gap is turbulent.
+                        if around > 0.0
+                            && (member[0] >= around || member[1] != TURBULENT_CONVECTION)
+                        {
                             continue;
                         }
                         grid.push(vec![
@@ -2112,7 +2124,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                                 .collect();
                             // The extra warmth leaves faster while the motor spins (forced
                             // convection, ∝ n^0.8): the feedback term of the heat path.
-                            Some((heat, vec![a.speed_power(0.8).into_owned()]))
+                            Some((heat, vec![a.speed_power(TURBULENT_CONVECTION).into_owned()]))
                         }),
                         temperature
                             .then_some(GainLimit::positive(0))
