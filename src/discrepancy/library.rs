@@ -262,8 +262,11 @@ impl AxisSignals {
 /// into the room.
 const SURROUNDINGS_TAU_S: f64 = 1800.0;
 
-/// The nonlinear parameter of a [`Physics::SpeedDependentCooling`] member that is positive
-/// where the share its surroundings reach is fitted.
+/// The nonlinear parameter of a [`Physics::SpeedDependentCooling`] member that holds the
+/// time constant of its surroundings' warming (0: it sheds into the room)…
+const SURROUNDINGS_AT: usize = 3;
+
+/// …and the one that is positive where the share its surroundings reach is fitted.
 const SURROUNDINGS_FITTED: usize = 4;
 
 /// The share of the part's rise its surroundings are taken to reach while the selection
@@ -1946,9 +1949,10 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     // Surroundings of a fixed share cool the part as far as it is above them;
                     // those of a fitted share take back a share of each cooling term (the same
                     // speed terms times their warmth, a lag of the part's rise).
-                    let warmth = (theta[3] > 0.0)
-                        .then(|| accumulated(ctx, &ctx.excess, theta[3], Start::Equilibrium));
-                    let fitted_share = theta[4] > 0.0;
+                    let around = theta[SURROUNDINGS_AT];
+                    let warmth = (around > 0.0)
+                        .then(|| accumulated(ctx, &ctx.excess, around, Start::Equilibrium));
+                    let fitted_share = theta[SURROUNDINGS_FITTED] > 0.0;
                     let above: std::borrow::Cow<'_, [f64]> = match &warmth {
                         Some(w) if !fitted_share => ctx
                             .excess
@@ -2658,7 +2662,7 @@ pub fn explain(
             p.insert("relative_change_at_1000rpm".into(), growth);
             // Warm surroundings take back a share of each cooling term (the drivers after
             // the cooling ones); the share of the part's rise they reach is that share.
-            let surroundings_s = theta.get(3).copied().unwrap_or(0.0);
+            let surroundings_s = theta.get(SURROUNDINGS_AT).copied().unwrap_or(0.0);
             let fitted_share = theta.get(SURROUNDINGS_FITTED).is_some_and(|f| *f > 0.0);
             let into = if surroundings_s > 0.0 {
                 let taken_back = if nominal {
