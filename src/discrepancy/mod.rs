@@ -884,7 +884,7 @@ fn binned_with_scales(
 }
 
 /// Most bin values [`FixedMembers`] keeps (64 MB): a thousand columns of 8,192 bins.
-const FIXED_MEMBERS_BUDGET: usize = 8 << 20;
+const FIXED_MEMBERS_BUDGET: usize = 16 << 20;
 
 /// The binned columns of members whose shape does not depend on the target's state, kept once
 /// built. The joint refit chooses every correction again from its whole family in each round,
@@ -968,8 +968,10 @@ impl<'c> Beside<'c> {
 /// The member [`Joint::reselect`] chose.
 struct Reselected {
     theta: Vec<f64>,
-    /// Whether its parameter was refined beside the corrections it was chosen beside.
-    refined: bool,
+    /// It with its parameter refined beside the corrections it was chosen beside, when the
+    /// choice already did that: it is itself a refined contender, or a grid member whose
+    /// refinement was one. Refining it again would repeat the same search on the same data.
+    refined: Option<Vec<f64>>,
 }
 
 /// A member's fit in the joint model.
@@ -1117,12 +1119,10 @@ impl Joint<'_> {
                     self.ctx
                 };
                 let chosen = self.reselect(*family, theta, &others, ctx);
-                // A contender refined beside these very corrections is not refined again.
-                self.accepted[k].1 = if chosen.refined {
-                    chosen.theta
-                } else {
-                    self.refine_member(*family, &chosen.theta, &others, ctx)
-                };
+                // A member refined beside these very corrections is not refined again.
+                self.accepted[k].1 = chosen
+                    .refined
+                    .unwrap_or_else(|| self.refine_member(*family, &chosen.theta, &others, ctx));
             }
             if !stateful {
                 break;
@@ -1355,18 +1355,32 @@ impl Joint<'_> {
             let error = score(&theta);
             (theta, error)
         });
+        // A grid member chosen as it stands keeps the refinement it had as a contender.
+        let refinement_of = |theta: &Vec<f64>| {
+            contenders
+                .iter()
+                .position(|c| c == theta)
+                .map(|k| refined[k].0.clone())
+        };
         ranked
-            .into_iter()
-            .map(|(theta, e)| (theta, e, false))
-            .chain(refined.into_iter().map(|(theta, e)| (theta, e, true)))
+            .iter()
+            .map(|(theta, e)| (theta, *e, refinement_of(theta)))
+            .chain(
+                refined
+                    .iter()
+                    .map(|(theta, e)| (theta, *e, Some(theta.clone()))),
+            )
             .filter(|(_, e, _)| e.is_finite())
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map_or_else(
                 || Reselected {
                     theta: current.to_vec(),
-                    refined: false,
+                    refined: None,
                 },
-                |(theta, _, refined)| Reselected { theta, refined },
+                |(theta, _, refined)| Reselected {
+                    theta: theta.clone(),
+                    refined,
+                },
             )
     }
 
