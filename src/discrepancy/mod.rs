@@ -883,7 +883,10 @@ fn binned_with_scales(
     Arc::new(binned.iter().map(|b| select::standardise(b)).collect())
 }
 
-/// Most bin values [`FixedMembers`] keeps (64 MB): a thousand columns of 8,192 bins.
+/// Most bin values [`FixedMembers`] keeps (128 MB): two thousand columns of 8,192 bins. The
+/// selection's candidates take about half; the rest keeps the time constants the refit's
+/// searches try round after round (half as much kept the candidates alone, and a 24 h case
+/// built a fifth of its members of fixed shape again).
 const FIXED_MEMBERS_BUDGET: usize = 16 << 20;
 
 /// The binned columns of members whose shape does not depend on the target's state, kept once
