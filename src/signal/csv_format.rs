@@ -153,10 +153,7 @@ impl<R: Read> RecordingReader<R> {
         if !more {
             return Ok(false);
         }
-        let line = self
-            .record
-            .position()
-            .map_or(0, |p| p.line() + self.lines_before_header);
+        let line = self.current_line();
         out.clear();
         let expected = self.schema.len();
         if self.record.len() != expected {
@@ -225,6 +222,108 @@ impl<R: Read> RecordingReader<R> {
             self.schema,
             columns,
         ))
+    }
+
+    /// Like [`Self::read_to_end`], but stops with [`RecordingError::TooManyRows`] at the row past
+    /// `limit`: a caller that must hold the whole recording in memory (many times over, as the
+    /// discrepancy analysis does) refuses a file too long for it before it is read whole.
+    pub fn read_at_most(self, limit: usize) -> Result<Recording, RecordingError> {
+        self.read_blocks(limit, None)
+    }
+
+    /// The rest of the file averaged over blocks of `block_s` seconds of its time: block `k`
+    /// holds the rows with `k · block_s ≤ time_s < (k + 1) · block_s`, and each block that
+    /// holds any row becomes one row whose every column, `time_s` included, is the mean of
+    /// the block's values. A 0/1 column such as `coolant_on` becomes the share of the block it
+    /// was on. The file is read in one pass holding only the blocks, so a recording at a rate
+    /// far above what its physics needs (1 kHz servo data for temperatures that move over
+    /// minutes) is read at a coarser one without first being held at its own. Blocks are
+    /// anchored at time 0, so two recordings on one clock are averaged over the same blocks.
+    /// More than `limit` blocks stop the read with [`RecordingError::TooManyRows`], a bad row
+    /// with the row's own error as [`Self::read_row`] reports it, and a `block_s` that is not
+    /// a positive number of seconds with [`RecordingError::InvalidBlock`].
+    pub fn read_averaged(self, block_s: f64, limit: usize) -> Result<Recording, RecordingError> {
+        if !(block_s.is_finite() && block_s > 0.0) {
+            return Err(RecordingError::InvalidBlock {
+                source_name: self.source.clone(),
+                block_s,
+            });
+        }
+        self.read_blocks(limit, Some(block_s))
+    }
+
+    /// Reads every remaining row (or, given `block_s`, every block's mean row, see
+    /// [`Self::read_averaged`]), at most `limit` of them.
+    fn read_blocks(
+        mut self,
+        limit: usize,
+        block_s: Option<f64>,
+    ) -> Result<Recording, RecordingError> {
+        let width = self.schema.len();
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); width];
+        let mut row = Vec::with_capacity(width);
+        // The block being summed: its index, the rows in it, the line it starts on; and the
+        // rows' sums.
+        let mut block: Option<(f64, usize, u64)> = None;
+        let mut sums = vec![0.0; width];
+        let too_many = |reader: &Self, line: u64| RecordingError::TooManyRows {
+            at: reader.location(line, None),
+            limit,
+            block_s,
+        };
+        let keep = |columns: &mut Vec<Vec<f64>>, values: &mut dyn Iterator<Item = f64>| {
+            let room = columns[0].len() < limit;
+            if room {
+                for (column, value) in columns.iter_mut().zip(values) {
+                    column.push(value);
+                }
+            }
+            room
+        };
+        while self.read_row(&mut row)? {
+            let line = self.current_line();
+            let Some(block_s) = block_s else {
+                if !keep(&mut columns, &mut row.iter().copied()) {
+                    return Err(too_many(&self, line));
+                }
+                continue;
+            };
+            let index = (row[0] / block_s).floor();
+            match &mut block {
+                Some((current, count, _)) if *current == index => *count += 1,
+                Some((_, count, start)) => {
+                    let n = *count as f64;
+                    if !keep(&mut columns, &mut sums.iter().map(|s| s / n)) {
+                        return Err(too_many(&self, *start));
+                    }
+                    sums.iter_mut().for_each(|s| *s = 0.0);
+                    block = Some((index, 1, line));
+                }
+                None => block = Some((index, 1, line)),
+            }
+            for (sum, value) in sums.iter_mut().zip(&row) {
+                *sum += value;
+            }
+        }
+        if let Some((_, count, start)) = block {
+            let n = count as f64;
+            if !keep(&mut columns, &mut sums.iter().map(|s| s / n)) {
+                return Err(too_many(&self, start));
+            }
+        }
+        Ok(Recording::from_parts(
+            self.source,
+            self.metadata,
+            self.schema,
+            columns,
+        ))
+    }
+
+    /// The file line of the row read last.
+    fn current_line(&self) -> u64 {
+        self.record
+            .position()
+            .map_or(0, |p| p.line() + self.lines_before_header)
     }
 
     /// Like [`Self::read_to_end`], but on a bad row returns what was read before it together with
@@ -455,6 +554,86 @@ mod tests {
 
     fn read(text: &str) -> Result<Recording, RecordingError> {
         RecordingReader::from_reader(text.as_bytes(), "t.csv")?.read_to_end()
+    }
+
+    fn reader(text: &str) -> RecordingReader<&[u8]> {
+        RecordingReader::from_reader(text.as_bytes(), "t.csv").expect("a header")
+    }
+
+    /// Each block of time becomes one row of the means of its rows, `time_s` included; a
+    /// block without rows (a gap) gives no row, and blocks are anchored at time 0.
+    #[test]
+    fn rows_are_averaged_over_blocks_of_time() {
+        let text = "# k: v\ntime_s,x,on\n0.0,1,0\n0.5,3,1\n1.0,10,1\n1.5,20,1\n1.75,30,0\n\
+                    4.25,7,1\n";
+        let rec = reader(text).read_averaged(1.0, 10).unwrap();
+        assert_eq!(rec.time(), &[0.25, 4.25 / 3.0, 4.25]);
+        assert_eq!(rec.column("x").unwrap(), &[2.0, 20.0, 7.0]);
+        assert_eq!(rec.column("on").unwrap(), &[0.5, 2.0 / 3.0, 1.0]);
+        assert_eq!(rec.metadata_value("k"), Some("v"));
+        // Blocks longer than the record: one row.
+        let rec = reader(text).read_averaged(10.0, 10).unwrap();
+        assert_eq!(rec.len(), 1);
+        assert_eq!(rec.column("x").unwrap(), &[71.0 / 6.0]);
+        // Blocks shorter than the steps: every row as it is.
+        let rec = reader(text).read_averaged(0.1, 10).unwrap();
+        assert_eq!(rec.column("x").unwrap(), &[1.0, 3.0, 10.0, 20.0, 30.0, 7.0]);
+    }
+
+    /// Past the limit the read stops with an error naming the file and the line where the row
+    /// (or block) past it starts; a block that is no length of time is refused before reading.
+    #[test]
+    fn a_read_past_its_limit_or_over_no_length_of_time_is_refused() {
+        let text = "time_s,x\n0,1\n1,2\n2,3\n3,4\n";
+        assert_eq!(reader(text).read_at_most(4).unwrap().len(), 4);
+        let err = reader(text).read_at_most(3).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                RecordingError::TooManyRows {
+                    limit: 3,
+                    block_s: None,
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
+        assert_eq!(err.to_string(), "t.csv: line 5: more than 3 rows");
+        assert_eq!(reader(text).read_averaged(2.0, 2).unwrap().len(), 2);
+        let err = reader(text).read_averaged(1.5, 2).unwrap_err();
+        // Blocks [0, 1.5), [1.5, 3), [3, 4.5): the third starts on line 5.
+        assert_eq!(
+            err.to_string(),
+            "t.csv: line 5: more than 2 rows averaged over 1.5 s blocks"
+        );
+        for block_s in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let err = reader(text).read_averaged(block_s, 10).unwrap_err();
+            assert!(
+                matches!(err, RecordingError::InvalidBlock { .. }),
+                "{err:?}"
+            );
+            assert!(
+                err.to_string().starts_with("t.csv: cannot average"),
+                "{err}"
+            );
+        }
+    }
+
+    /// A bad row stops an averaged read with the row's own error, where it is.
+    #[test]
+    fn a_bad_row_stops_an_averaged_read_where_it_is() {
+        let err = reader("time_s,x\n0,1\n0.5,2\n0.2,3\n")
+            .read_averaged(1.0, 10)
+            .unwrap_err();
+        assert!(
+            matches!(err, RecordingError::TimeBackwards { .. }),
+            "{err:?}"
+        );
+        assert!(err.to_string().starts_with("t.csv: line 4"), "{err}");
+        let err = reader("time_s,x\n0,1\n0.5,oops\n")
+            .read_averaged(1.0, 10)
+            .unwrap_err();
+        assert!(err.to_string().contains("line 3, column 2 (`x`)"), "{err}");
     }
 
     #[test]

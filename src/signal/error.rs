@@ -131,6 +131,30 @@ pub enum RecordingError {
         /// The previous row's time.
         previous_s: f64,
     },
+    /// The file holds more rows than the reader was asked to keep: a recording too long to
+    /// hold in memory at its own rate (see [`crate::signal::RecordingReader::read_averaged`]).
+    #[error(
+        "{at}: more than {limit} rows{}",
+        .block_s.map(|s| format!(" averaged over {s} s blocks")).unwrap_or_default()
+    )]
+    TooManyRows {
+        /// Where the row past the limit starts.
+        at: Location,
+        /// Most rows kept.
+        limit: usize,
+        /// The blocks the rows were averaged over, when they were.
+        block_s: Option<f64>,
+    },
+    /// Rows were to be averaged over blocks that are not a positive length of time.
+    #[error(
+        "{source_name}: cannot average over blocks of {block_s} s (a block is a positive number of seconds)"
+    )]
+    InvalidBlock {
+        /// The file name.
+        source_name: String,
+        /// The block asked for.
+        block_s: f64,
+    },
     /// A column a computation needs is not in the recording.
     #[error("{source_name}: no column `{name}`{}", purpose_suffix(.needed_for))]
     MissingColumn {
