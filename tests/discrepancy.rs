@@ -914,6 +914,101 @@ fn the_command_reports_bad_input_in_one_line() {
     }
 }
 
+/// A recording longer than the analysis takes is refused while it is read, in one line that
+/// names the file and says how to read it averaged; averaged over blocks of time as it is
+/// read, the same file is analysed and the command says what it made of it. The library
+/// refuses such a recording too, whoever read it.
+#[test]
+fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
+    use servosight::discrepancy::{DiscrepancyError, MAX_ROWS};
+    use std::fmt::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let (long, real) = (dir.path().join("long.csv"), dir.path().join("real.csv"));
+    // One row past the limit at 1 kHz: 2,000 s of a stator warming by a kelvin, and the real
+    // one at 1 Hz, a tenth of a kelvin off.
+    let stator = |t: f64| 20.0 + (1.0 - (-t / 600.0).exp());
+    let mut text = String::from("time_s,S.stator_temp_C\n");
+    for i in 0..=MAX_ROWS {
+        let t = i as f64 / 1000.0;
+        writeln!(text, "{t},{}", stator(t)).unwrap();
+    }
+    std::fs::write(&long, &text).unwrap();
+    let mut text = String::from("time_s,S.stator_temp_C\n");
+    for i in 0..=MAX_ROWS / 1000 {
+        let t = i as f64;
+        let wobble = 0.1 * (t / 97.0).sin();
+        writeln!(text, "{t},{}", stator(t) + wobble).unwrap();
+    }
+    std::fs::write(&real, &text).unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "discrepancy",
+            "--sim",
+            arg(&long),
+            "--real",
+            arg(&real),
+            "--target",
+            "S.stator_temp_C",
+        ];
+        args.extend(extra);
+        servosight(&args)
+    };
+    let refused = run(&[]);
+    assert!(!refused.status.success());
+    let err = stderr(&refused);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("cannot read the simulation")
+            && err.contains(&format!(
+                "long.csv: line {}: more than {MAX_ROWS} rows",
+                MAX_ROWS + 2
+            ))
+            && err.contains("--average SECONDS"),
+        "{err}"
+    );
+    let averaged = run(&["--average", "1", "--json", "-"]);
+    assert!(averaged.status.success(), "{}", stderr(&averaged));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&averaged)).unwrap();
+    let rows = MAX_ROWS / 1000 + 1;
+    // An averaged row stands at its block's mean time (0.4995 s, 1.4995 s, …): the real
+    // recording's first row, at 0 s, lies before the simulation, which is read onto the rest.
+    assert_eq!(report["rows"], rows - 1, "{report}");
+    assert_eq!(report["alignment"]["resampled"], true, "{report}");
+    assert!(
+        stderr(&averaged).contains(&format!(
+            "averaged over 1 s blocks: the simulation to {rows} rows, the real recording to {rows}"
+        )),
+        "{}",
+        stderr(&averaged)
+    );
+    for block in ["0", "-2", "NaN"] {
+        let bad = run(&[&format!("--average={block}")]);
+        assert!(!bad.status.success());
+        let err = stderr(&bad);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.contains("--average must be a positive number of seconds"),
+            "{err}"
+        );
+    }
+    // The library, given a recording past the limit however it was read.
+    let sim = servosight::signal::RecordingReader::open(&long)
+        .unwrap()
+        .read_to_end()
+        .unwrap();
+    let real = servosight::signal::read_recording(&real).unwrap();
+    match analyse(&sim, &real, "S.stator_temp_C", &Options::default()) {
+        Err(e @ DiscrepancyError::TooManyRows { .. }) => {
+            let message = e.to_string();
+            assert!(
+                message.contains("the simulation") && message.contains("long.csv"),
+                "{message}"
+            );
+        }
+        other => panic!("expected the limit, got {:?}", other.map(|r| r.verdict)),
+    }
+}
+
 /// Tally of a group of cases.
 #[derive(Debug, Default)]
 struct Tally {

@@ -942,8 +942,8 @@ fn a_missing_file_shows_the_error_in_the_model_lab() {
     assert!(shows(h, "Analyse"), "the panel is free again");
 }
 
-/// Bad input comes back as the library's own message: a target missing from a file, and two
-/// recordings that do not overlap in time.
+/// Bad input comes back as the library's own message: a target missing from a file, two
+/// recordings that do not overlap in time, and a recording longer than the analysis takes.
 #[test]
 fn the_discrepancy_job_reports_the_librarys_errors() {
     use servosight::ui::jobs::{JobContext, JobStop};
@@ -993,6 +993,34 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
         panic!("expected a failure, got {no_overlap:?}");
     };
     assert!(message.contains("do not overlap in time"), "{message}");
+    // A simulation longer than the analysis takes is refused while it is read, before it
+    // fills the memory the HMI shares with the live machine's history.
+    let limit = servosight::discrepancy::MAX_ROWS;
+    let long_path = dir.path().join("long.csv");
+    let mut text = String::from("time_s,S.stator_temp_C\n");
+    for i in 0..=limit {
+        use std::fmt::Write as _;
+        writeln!(text, "{},20", i as f64 / 1000.0).expect("text");
+    }
+    std::fs::write(&long_path, text).expect("written");
+    let too_long = run_discrepancy(
+        DiscrepancyRequest {
+            sim: long_path,
+            real: real.clone(),
+            target: "S.stator_temp_C".into(),
+        },
+        &context,
+    )
+    .err();
+    let Some(JobStop::Failed(message)) = too_long else {
+        panic!("expected a failure, got {too_long:?}");
+    };
+    assert!(
+        message.contains("long.csv")
+            && message.contains(&format!("more than {limit} rows"))
+            && message.contains("--average"),
+        "{message}"
+    );
     let stages: Vec<String> = rx
         .try_iter()
         .filter_map(|m| match m {

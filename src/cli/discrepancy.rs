@@ -1,12 +1,12 @@
 //! `servosight discrepancy`: where a simulation and a real recording disagree on a target, which
 //! physics the simulation left out, the fitted correction, and the fit before and after.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use servosight::discrepancy::series::join_or_resume;
-use servosight::discrepancy::{Options, analyse};
-use servosight::signal::read_recording;
+use servosight::discrepancy::{MAX_ROWS, Options, analyse};
+use servosight::signal::{Recording, RecordingError, RecordingReader};
 use servosight::ui::export_png::render_discrepancy;
 use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest};
 use servosight::ui::vm::discrepancy::result_view;
@@ -58,6 +58,11 @@ pub struct Args {
     /// Seed of the surrogates (the same seed gives the same report).
     #[arg(long, default_value_t = Options::default().seed)]
     pub seed: u64,
+    /// Average both recordings over blocks of this many seconds as they are read (one row
+    /// per block, each column its mean there): for recordings longer than the analysis takes
+    /// at their own rate (2,000,000 rows each), e.g. 1 kHz servo data over hours.
+    #[arg(long, value_name = "SECONDS")]
+    pub average: Option<f64>,
 }
 
 /// Tells the C allocator to keep the memory the analysis frees for its next columns.
@@ -81,18 +86,55 @@ fn keep_freed_memory_for_reuse() {
     }
 }
 
+/// Reads a recording for the analysis: whole, or averaged over `average` seconds' blocks, and
+/// never more rows than the analysis takes ([`MAX_ROWS`]), so that a recording too long for it
+/// is refused while it is read rather than after it filled the memory.
+fn read_for_analysis(path: &Path, average: Option<f64>) -> anyhow::Result<Recording> {
+    let reader = RecordingReader::open(path)?;
+    let read = match average {
+        Some(block_s) => reader.read_averaged(block_s, MAX_ROWS),
+        None => reader.read_at_most(MAX_ROWS),
+    };
+    read.map_err(|e| match e {
+        RecordingError::TooManyRows { block_s: None, .. } => anyhow::anyhow!(
+            "{e}: the analysis takes at most {MAX_ROWS} rows of each recording; average them \
+             over blocks of time as they are read with --average SECONDS (--average 1 makes \
+             one row a second of a 1 kHz recording)"
+        ),
+        RecordingError::TooManyRows {
+            block_s: Some(_), ..
+        } => anyhow::anyhow!(
+            "{e}: the analysis takes at most {MAX_ROWS} rows of each recording; average them \
+             over longer blocks"
+        ),
+        other => other.into(),
+    })
+}
+
 /// Runs `servosight discrepancy`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     keep_freed_memory_for_reuse();
+    if let Some(block_s) = args.average
+        && !(block_s.is_finite() && block_s > 0.0)
+    {
+        anyhow::bail!("--average must be a positive number of seconds, not {block_s}");
+    }
     // The two files are read side by side: on a long recording reading is a quarter of the
     // command's time.
     let (sim, real) = std::thread::scope(|scope| {
-        let sim = scope.spawn(|| read_recording(&args.sim));
-        let real = read_recording(&args.real);
+        let sim = scope.spawn(|| read_for_analysis(&args.sim, args.average));
+        let real = read_for_analysis(&args.real, args.average);
         (join_or_resume(sim), real)
     });
     let sim = sim.context("cannot read the simulation")?;
     let real = real.context("cannot read the real recording")?;
+    if let Some(block_s) = args.average {
+        eprintln!(
+            "averaged over {block_s} s blocks: the simulation to {} rows, the real recording to {}",
+            sim.len(),
+            real.len()
+        );
+    }
     let options = Options {
         surrogates: args.surrogates,
         alpha: args.alpha,

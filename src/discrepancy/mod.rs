@@ -89,6 +89,22 @@ pub enum DiscrepancyError {
         /// Rows needed.
         needed: usize,
     },
+    /// A recording has more rows than the analysis takes ([`MAX_ROWS`]).
+    #[error(
+        "the {role} {source_name} has {rows} rows; the analysis takes at most {limit} of each \
+         recording (it holds each of its candidate corrections at full rate, about 2 kB a row) \
+         — average it over longer blocks of time first"
+    )]
+    TooManyRows {
+        /// "simulation" or "real recording".
+        role: &'static str,
+        /// The file.
+        source_name: String,
+        /// Its rows.
+        rows: usize,
+        /// [`MAX_ROWS`].
+        limit: usize,
+    },
     /// An option is out of range.
     #[error("invalid option {name} = {value}: {requirement}")]
     InvalidOption {
@@ -310,6 +326,15 @@ fn standardised(columns: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<(f64, f64)>) {
         .unzip()
 }
 
+/// Most rows of each recording the analysis takes. Its memory grows with the rows, about
+/// 2 kB a row at the peak (2.1 GB and 18.6 s for 1,080,001 rows, docs/performance.md), since it
+/// builds its candidate corrections at full rate before averaging them into the selection's
+/// bins: two million rows stay near 4 GB. A longer recording (1 kHz servo data over hours) is
+/// averaged over blocks of time first ([`crate::signal::RecordingReader::read_averaged`]; the
+/// command's `--average`), which for physics that moves over seconds and minutes loses
+/// nothing the analysis could use.
+pub const MAX_ROWS: usize = 2_000_000;
+
 /// Analyses `real` against `sim` for `target`.
 pub fn analyse(
     sim: &crate::signal::Recording,
@@ -348,6 +373,16 @@ fn analyse_watched(
     watch: &Watch<'_>,
 ) -> Result<DiscrepancyReport, DiscrepancyError> {
     options.validate()?;
+    for (role, recording) in [("simulation", sim), ("real recording", real)] {
+        if recording.len() > MAX_ROWS {
+            return Err(DiscrepancyError::TooManyRows {
+                role,
+                source_name: recording.source().to_string(),
+                rows: recording.len(),
+                limit: MAX_ROWS,
+            });
+        }
+    }
     watch.report(0.0, || "aligning the recordings".into())?;
     let aligned = Aligned::new(sim, real, target)?;
     let n = aligned.len();

@@ -156,12 +156,15 @@ impl<R: Read> Read for CountingReader<R> {
 }
 
 /// Reads a recording file on a job's thread, reporting `stage (N rows)` with a fraction that
-/// moves through `span` as the bytes are read, and stopping within 8192 rows of a cancel.
+/// moves through `span` as the bytes are read, and stopping within 8192 rows of a cancel. Given
+/// `max_rows`, a file with more rows fails the job at the row past them, with a message that
+/// says how to read it averaged, before the rest is read.
 pub fn read_with_progress<T>(
     path: &std::path::Path,
     context: &JobContext<T>,
     stage: &str,
     span: std::ops::Range<f32>,
+    max_rows: Option<usize>,
 ) -> Result<Recording, JobStop> {
     let failed = |e: &dyn std::fmt::Display| JobStop::Failed(e.to_string());
     let file = std::fs::File::open(path)
@@ -175,13 +178,22 @@ pub fn read_with_progress<T>(
     };
     let source = path.display().to_string();
     let mut reader = RecordingReader::from_reader(counting, &source).map_err(|e| failed(&e))?;
-    let mut recording = Recording::with_schema(source, reader.schema().clone());
+    let mut recording = Recording::with_schema(source.clone(), reader.schema().clone());
     for (key, value) in reader.metadata().to_vec() {
         recording.set_metadata(&key, &value);
     }
     let mut row = Vec::new();
     let mut rows = 0u64;
     while reader.read_row(&mut row).map_err(|e| failed(&e))? {
+        if let Some(limit) = max_rows
+            && recording.len() >= limit
+        {
+            return Err(JobStop::Failed(format!(
+                "{source}: more than {limit} rows, more than this job takes of a recording; \
+                 average it over blocks of time first (`servosight discrepancy --average \
+                 SECONDS` reads recordings that way)"
+            )));
+        }
         recording.push_row(&row).map_err(|e| failed(&e))?;
         rows += 1;
         if rows.is_multiple_of(8192) {
@@ -212,7 +224,13 @@ pub fn run_fit(
         ));
     }
     context.progress("reading the database", Some(0.0));
-    let recording = read_with_progress(&request.data, context, "reading the database", 0.0..0.8)?;
+    let recording = read_with_progress(
+        &request.data,
+        context,
+        "reading the database",
+        0.0..0.8,
+        None,
+    )?;
     let rows = recording.len();
     context.check()?;
     context.progress(&format!("building the design ({rows} rows)"), Some(0.8));

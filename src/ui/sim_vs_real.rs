@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 
 use super::history::{History, HistoryConfig};
 use super::jobs::{JobContext, JobStop, read_with_progress};
-use crate::discrepancy::{DiscrepancyError, DiscrepancyReport, Options, analyse_observed};
+use crate::discrepancy::{
+    DiscrepancyError, DiscrepancyReport, MAX_ROWS, Options, analyse_observed,
+};
 use crate::signal::RecordingReader;
 use crate::signal::channel::TIME;
 
@@ -109,13 +111,22 @@ pub fn run_discrepancy(
         return Err(JobStop::Failed("choose the column to compare".into()));
     }
     context.progress("reading the simulation", Some(0.0));
-    let sim = read_with_progress(&request.sim, context, "reading the simulation", 0.0..0.2)?;
+    // Never more rows than the analysis takes: a recording too long for it is refused while
+    // it is read, before it fills the memory the HMI shares with the live machine's history.
+    let sim = read_with_progress(
+        &request.sim,
+        context,
+        "reading the simulation",
+        0.0..0.2,
+        Some(MAX_ROWS),
+    )?;
     context.progress("reading the real recording", Some(0.2));
     let real = read_with_progress(
         &request.real,
         context,
         "reading the real recording",
         0.2..0.4,
+        Some(MAX_ROWS),
     )?;
     let observer = |fraction: f32, stage: &str| {
         let span = ANALYSIS_SPAN.end - ANALYSIS_SPAN.start;
