@@ -974,6 +974,13 @@ fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
     // recording's first row, at 0 s, lies before the simulation, which is read onto the rest.
     assert_eq!(report["rows"], rows - 1, "{report}");
     assert_eq!(report["alignment"]["resampled"], true, "{report}");
+    let note = report["alignment"]["note"].as_str().unwrap_or_default();
+    assert!(
+        note.starts_with(
+            "read averaged (the simulation over 1 s blocks, the real recording over 1 s blocks)"
+        ),
+        "{note}"
+    );
     assert!(
         stderr(&averaged).contains(&format!(
             "averaged over 1 s blocks: the simulation to {rows} rows, the real recording to {rows}"

@@ -221,6 +221,18 @@ impl<'a> Aligned<'a> {
         } else {
             format!("both recordings share the time grid; {span}")
         };
+        let averaged: Vec<String> = [("simulation", self.sim), ("real recording", self.real)]
+            .iter()
+            .filter_map(|(role, recording)| {
+                let block = recording.metadata_value(crate::signal::AVERAGED_OVER_S)?;
+                Some(format!("the {role} over {block} s blocks"))
+            })
+            .collect();
+        let joined = if averaged.is_empty() {
+            joined
+        } else {
+            format!("read averaged ({}); {joined}", averaged.join(", "))
+        };
         match self.censoring {
             Some(c) => format!(
                 "{joined}; the real target reads exactly {} in {:.1} % of the rows (an instrument that cannot read below it), so the simulation is compared as it would read: in each of the {} stretches where it sits at that floor it is raised by what the floor adds to the mean reading there, leaving the instrument's own level μ in the residual (noise σ = {:.4} about that level){}",

@@ -231,7 +231,8 @@ impl<R: Read> RecordingReader<R> {
         self.read_blocks(limit, None)
     }
 
-    /// The rest of the file averaged over blocks of `block_s` seconds of its time: block `k`
+    /// The rest of the file averaged over blocks of `block_s` seconds of its time (the
+    /// recording says so in its metadata, [`AVERAGED_OVER_S`]): block `k`
     /// holds the rows with `k · block_s ≤ time_s < (k + 1) · block_s`, and each block that
     /// holds any row becomes one row whose every column, `time_s` included, is the mean of
     /// the block's values. A 0/1 column such as `coolant_on` becomes the share of the block it
@@ -311,12 +312,11 @@ impl<R: Read> RecordingReader<R> {
                 return Err(too_many(&self, start));
             }
         }
-        Ok(Recording::from_parts(
-            self.source,
-            self.metadata,
-            self.schema,
-            columns,
-        ))
+        let mut recording = Recording::from_parts(self.source, self.metadata, self.schema, columns);
+        if let Some(block_s) = block_s {
+            recording.set_metadata(AVERAGED_OVER_S, &block_s.to_string());
+        }
+        Ok(recording)
     }
 
     /// The file line of the row read last.
@@ -354,6 +354,10 @@ impl<R: Read> RecordingReader<R> {
         }
     }
 }
+
+/// The metadata key of a recording read averaged over blocks of time
+/// ([`RecordingReader::read_averaged`]): the block, seconds.
+pub const AVERAGED_OVER_S: &str = "averaged_over_s";
 
 /// Reads a whole recording file.
 pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
@@ -567,6 +571,7 @@ mod tests {
         let text = "# k: v\ntime_s,x,on\n0.0,1,0\n0.5,3,1\n1.0,10,1\n1.5,20,1\n1.75,30,0\n\
                     4.25,7,1\n";
         let rec = reader(text).read_averaged(1.0, 10).unwrap();
+        assert_eq!(rec.metadata_value(AVERAGED_OVER_S), Some("1"));
         assert_eq!(rec.time(), &[0.25, 4.25 / 3.0, 4.25]);
         assert_eq!(rec.column("x").unwrap(), &[2.0, 20.0, 7.0]);
         assert_eq!(rec.column("on").unwrap(), &[0.5, 2.0 / 3.0, 1.0]);
