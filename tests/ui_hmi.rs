@@ -953,18 +953,19 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
     let (sim, real, target) = discrepancy_files(dir.path());
     let (tx, rx) = std::sync::mpsc::sync_channel(1024);
     let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
-    let missing_target = run_discrepancy(
-        DiscrepancyRequest {
-            sim: sim.clone(),
-            real: real.clone(),
-            target: "ref.S.no_such_column_um".into(),
-        },
-        &context,
-    )
-    .err();
-    let Some(JobStop::Failed(message)) = missing_target else {
-        panic!("expected a failure, got {missing_target:?}");
+    // The job's failure message for `sim` against `real` on `target`.
+    let failure = |sim: &std::path::Path, real: &std::path::Path, target: &str| {
+        let request = DiscrepancyRequest {
+            sim: sim.to_path_buf(),
+            real: real.to_path_buf(),
+            target: target.into(),
+        };
+        match run_discrepancy(request, &context).err() {
+            Some(JobStop::Failed(message)) => message,
+            other => panic!("expected a failure, got {other:?}"),
+        }
     };
+    let message = failure(&sim, &real, "ref.S.no_such_column_um");
     assert!(
         message.contains("ref.S.no_such_column_um") && message.contains("not a column"),
         "{message}"
@@ -980,18 +981,7 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
     }
     let later_path = dir.path().join("later.csv");
     servosight::signal::write_recording(&later_path, &later).expect("written");
-    let no_overlap = run_discrepancy(
-        DiscrepancyRequest {
-            sim,
-            real: later_path,
-            target,
-        },
-        &context,
-    )
-    .err();
-    let Some(JobStop::Failed(message)) = no_overlap else {
-        panic!("expected a failure, got {no_overlap:?}");
-    };
+    let message = failure(&sim, &later_path, &target);
     assert!(message.contains("do not overlap in time"), "{message}");
     // A simulation longer than the analysis takes is refused while it is read, before it
     // fills the memory the HMI shares with the live machine's history.
@@ -1003,18 +993,7 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
         writeln!(text, "{},20", i as f64 / 1000.0).expect("text");
     }
     std::fs::write(&long_path, text).expect("written");
-    let too_long = run_discrepancy(
-        DiscrepancyRequest {
-            sim: long_path,
-            real: real.clone(),
-            target: "S.stator_temp_C".into(),
-        },
-        &context,
-    )
-    .err();
-    let Some(JobStop::Failed(message)) = too_long else {
-        panic!("expected a failure, got {too_long:?}");
-    };
+    let message = failure(&long_path, &real, "S.stator_temp_C");
     assert!(
         message.contains("long.csv")
             && message.contains(&format!("more than {limit} rows"))
