@@ -155,16 +155,26 @@ impl<R: Read> Read for CountingReader<R> {
     }
 }
 
+/// The most rows a job reads of a recording, and what the message that refuses more tells
+/// the user to do.
+#[derive(Debug, Clone, Copy)]
+pub struct RowLimit {
+    /// The most rows read.
+    pub rows: usize,
+    /// What to do with a longer file.
+    pub advice: &'static str,
+}
+
 /// Reads a recording file on a job's thread, reporting `stage (N rows)` with a fraction that
 /// moves through `span` as the bytes are read, and stopping within 8192 rows of a cancel. Given
-/// `max_rows`, a file with more rows fails the job at the row past them, with a message that
-/// says how to read it averaged, before the rest is read.
+/// a [`RowLimit`], a file with more rows fails the job at the row past them, before the rest is
+/// read.
 pub fn read_with_progress<T>(
     path: &std::path::Path,
     context: &JobContext<T>,
     stage: &str,
     span: std::ops::Range<f32>,
-    max_rows: Option<usize>,
+    limit: Option<RowLimit>,
 ) -> Result<Recording, JobStop> {
     let failed = |e: &dyn std::fmt::Display| JobStop::Failed(e.to_string());
     let file = std::fs::File::open(path)
@@ -185,13 +195,11 @@ pub fn read_with_progress<T>(
     let mut row = Vec::new();
     let mut rows = 0u64;
     while reader.read_row(&mut row).map_err(|e| failed(&e))? {
-        if let Some(limit) = max_rows
-            && recording.len() >= limit
+        if let Some(RowLimit { rows, advice }) = limit
+            && recording.len() >= rows
         {
             return Err(JobStop::Failed(format!(
-                "{source}: more than {limit} rows, more than this job takes of a recording; \
-                 average it over blocks of time first (`servosight discrepancy --average \
-                 SECONDS` reads recordings that way)"
+                "{source}: more than {rows} rows; {advice}"
             )));
         }
         recording.push_row(&row).map_err(|e| failed(&e))?;

@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 
 use super::history::{History, HistoryConfig};
-use super::jobs::{JobContext, JobStop, read_with_progress};
+use super::jobs::{JobContext, JobStop, RowLimit, read_with_progress};
 use crate::discrepancy::{
     DiscrepancyError, DiscrepancyReport, MAX_ROWS, Options, analyse_observed,
 };
@@ -113,12 +113,18 @@ pub fn run_discrepancy(
     context.progress("reading the simulation", Some(0.0));
     // Never more rows than the analysis takes: a recording too long for it is refused while
     // it is read, before it fills the memory the HMI shares with the live machine's history.
+    let limit = Some(RowLimit {
+        rows: MAX_ROWS,
+        advice: "the analysis takes at most that many rows of each recording; average them over \
+                 blocks of time first (`servosight discrepancy --average SECONDS` reads them \
+                 that way)",
+    });
     let sim = read_with_progress(
         &request.sim,
         context,
         "reading the simulation",
         0.0..0.2,
-        Some(MAX_ROWS),
+        limit,
     )?;
     context.progress("reading the real recording", Some(0.2));
     let real = read_with_progress(
@@ -126,7 +132,7 @@ pub fn run_discrepancy(
         context,
         "reading the real recording",
         0.2..0.4,
-        Some(MAX_ROWS),
+        limit,
     )?;
     let observer = |fraction: f32, stage: &str| {
         let span = ANALYSIS_SPAN.end - ANALYSIS_SPAN.start;
