@@ -1396,33 +1396,30 @@ impl Joint<'_> {
             let error = score(&theta);
             (theta, error)
         });
-        // A grid member chosen as it stands keeps the refinement it had as a contender.
-        let refinement_of = |theta: &Vec<f64>| {
-            contenders
-                .iter()
-                .position(|c| c == theta)
-                .map(|k| refined[k].0.clone())
-        };
-        ranked
-            .iter()
-            .map(|(theta, e)| (theta, *e, refinement_of(theta)))
-            .chain(
-                refined
-                    .iter()
-                    .map(|(theta, e)| (theta, *e, Some(theta.clone()))),
-            )
+        let best = ranked
+            .into_iter()
+            .map(|(theta, e)| (theta, e, false))
+            .chain(refined.iter().map(|(theta, e)| (theta.clone(), *e, true)))
             .filter(|(_, e, _)| e.is_finite())
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map_or_else(
-                || Reselected {
-                    theta: current.to_vec(),
-                    refined: None,
-                },
-                |(theta, _, refined)| Reselected {
-                    theta: theta.clone(),
-                    refined,
-                },
-            )
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match best {
+            None => Reselected {
+                theta: current.to_vec(),
+                refined: None,
+            },
+            Some((theta, _, true)) => Reselected {
+                refined: Some(theta.clone()),
+                theta,
+            },
+            // A grid member chosen as it stands keeps the refinement it had as a contender.
+            Some((theta, _, false)) => Reselected {
+                refined: contenders
+                    .iter()
+                    .position(|c| *c == theta)
+                    .map(|k| refined[k].0.clone()),
+                theta,
+            },
+        }
     }
 
     /// Iterates the state correction to its fixed point: fit every accepted correction, take

@@ -208,20 +208,8 @@ impl<R: Read> RecordingReader<R> {
     }
 
     /// Reads every remaining row into a columnar [`Recording`].
-    pub fn read_to_end(mut self) -> Result<Recording, RecordingError> {
-        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); self.schema.len()];
-        let mut row = Vec::with_capacity(self.schema.len());
-        while self.read_row(&mut row)? {
-            for (column, &value) in columns.iter_mut().zip(&row) {
-                column.push(value);
-            }
-        }
-        Ok(Recording::from_parts(
-            self.source,
-            self.metadata,
-            self.schema,
-            columns,
-        ))
+    pub fn read_to_end(self) -> Result<Recording, RecordingError> {
+        self.read_blocks(usize::MAX, None)
     }
 
     /// Like [`Self::read_to_end`], but stops with [`RecordingError::TooManyRows`] at the row past
@@ -254,7 +242,8 @@ impl<R: Read> RecordingReader<R> {
     }
 
     /// Reads every remaining row (or, given `block_s`, every block's mean row, see
-    /// [`Self::read_averaged`]), at most `limit` of them.
+    /// [`Self::read_averaged`]), at most `limit` of them: the one loop behind
+    /// [`Self::read_to_end`], [`Self::read_at_most`] and [`Self::read_averaged`].
     fn read_blocks(
         mut self,
         limit: usize,
@@ -267,24 +256,30 @@ impl<R: Read> RecordingReader<R> {
         // rows' sums.
         let mut block: Option<(f64, usize, u64)> = None;
         let mut sums = vec![0.0; width];
+        let mut means = Vec::with_capacity(width);
         let too_many = |reader: &Self, line: u64| RecordingError::TooManyRows {
             at: reader.location(line, None),
             limit,
             block_s,
         };
-        let keep = |columns: &mut Vec<Vec<f64>>, values: &mut dyn Iterator<Item = f64>| {
+        // Appends a row unless `limit` rows are kept already.
+        let keep = |columns: &mut Vec<Vec<f64>>, values: &[f64]| {
             let room = columns[0].len() < limit;
             if room {
-                for (column, value) in columns.iter_mut().zip(values) {
+                for (column, &value) in columns.iter_mut().zip(values) {
                     column.push(value);
                 }
             }
             room
         };
+        let mean_of = |means: &mut Vec<f64>, sums: &[f64], count: usize| {
+            means.clear();
+            means.extend(sums.iter().map(|s| s / count as f64));
+        };
         while self.read_row(&mut row)? {
             let line = self.current_line();
             let Some(block_s) = block_s else {
-                if !keep(&mut columns, &mut row.iter().copied()) {
+                if !keep(&mut columns, &row) {
                     return Err(too_many(&self, line));
                 }
                 continue;
@@ -293,8 +288,8 @@ impl<R: Read> RecordingReader<R> {
             match &mut block {
                 Some((current, count, _)) if *current == index => *count += 1,
                 Some((_, count, start)) => {
-                    let n = *count as f64;
-                    if !keep(&mut columns, &mut sums.iter().map(|s| s / n)) {
+                    mean_of(&mut means, &sums, *count);
+                    if !keep(&mut columns, &means) {
                         return Err(too_many(&self, *start));
                     }
                     sums.iter_mut().for_each(|s| *s = 0.0);
@@ -307,8 +302,8 @@ impl<R: Read> RecordingReader<R> {
             }
         }
         if let Some((_, count, start)) = block {
-            let n = count as f64;
-            if !keep(&mut columns, &mut sums.iter().map(|s| s / n)) {
+            mean_of(&mut means, &sums, count);
+            if !keep(&mut columns, &means) {
                 return Err(too_many(&self, start));
             }
         }
