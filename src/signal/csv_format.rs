@@ -209,14 +209,14 @@ impl<R: Read> RecordingReader<R> {
 
     /// Reads every remaining row into a columnar [`Recording`].
     pub fn read_to_end(self) -> Result<Recording, RecordingError> {
-        self.read_blocks(usize::MAX, None)
+        self.read_observed(usize::MAX, None, &mut |_| true)
     }
 
     /// Like [`Self::read_to_end`], but stops with [`RecordingError::TooManyRows`] at the row past
     /// `limit`: a caller that must hold the whole recording in memory (many times over, as the
     /// discrepancy analysis does) refuses a file too long for it before it is read whole.
     pub fn read_at_most(self, limit: usize) -> Result<Recording, RecordingError> {
-        self.read_blocks(limit, None)
+        self.read_observed(limit, None, &mut |_| true)
     }
 
     /// The rest of the file averaged over blocks of `block_s` seconds of its time (the
@@ -232,23 +232,32 @@ impl<R: Read> RecordingReader<R> {
     /// with the row's own error as [`Self::read_row`] reports it, and a `block_s` that is not
     /// a positive number of seconds with [`RecordingError::InvalidBlock`].
     pub fn read_averaged(self, block_s: f64, limit: usize) -> Result<Recording, RecordingError> {
-        if !(block_s.is_finite() && block_s > 0.0) {
+        self.read_observed(limit, Some(block_s), &mut |_| true)
+    }
+
+    /// How many rows [`Self::read_observed`] reads between two calls of its observer.
+    pub const OBSERVED_EVERY: u64 = 8192;
+
+    /// Reads every remaining row as [`Self::read_at_most`] does, or, given `block_s`, every
+    /// block's mean row as [`Self::read_averaged`] does, at most `limit` of them, and calls
+    /// `observe` with the number of rows read so far after every [`Self::OBSERVED_EVERY`]
+    /// rows: the one reading loop behind the others, for a caller that shows how far a long
+    /// read is or may stop it. `observe` returning `false` stops the read with
+    /// [`RecordingError::Stopped`].
+    pub fn read_observed(
+        mut self,
+        limit: usize,
+        block_s: Option<f64>,
+        observe: &mut dyn FnMut(u64) -> bool,
+    ) -> Result<Recording, RecordingError> {
+        if let Some(block_s) = block_s
+            && !(block_s.is_finite() && block_s > 0.0)
+        {
             return Err(RecordingError::InvalidBlock {
                 source_name: self.source.clone(),
                 block_s,
             });
         }
-        self.read_blocks(limit, Some(block_s))
-    }
-
-    /// Reads every remaining row (or, given `block_s`, every block's mean row, see
-    /// [`Self::read_averaged`]), at most `limit` of them: the one loop behind
-    /// [`Self::read_to_end`], [`Self::read_at_most`] and [`Self::read_averaged`].
-    fn read_blocks(
-        mut self,
-        limit: usize,
-        block_s: Option<f64>,
-    ) -> Result<Recording, RecordingError> {
         let width = self.schema.len();
         let mut columns: Vec<Vec<f64>> = vec![Vec::new(); width];
         let mut row = Vec::with_capacity(width);
@@ -276,8 +285,15 @@ impl<R: Read> RecordingReader<R> {
             means.clear();
             means.extend(sums.iter().map(|s| s / count as f64));
         };
+        let mut rows = 0u64;
         while self.read_row(&mut row)? {
             let line = self.current_line();
+            rows += 1;
+            if rows.is_multiple_of(Self::OBSERVED_EVERY) && !observe(rows) {
+                return Err(RecordingError::Stopped {
+                    at: self.location(line, None),
+                });
+            }
             let Some(block_s) = block_s else {
                 if !keep(&mut columns, &row) {
                     return Err(too_many(&self, line));
@@ -578,6 +594,38 @@ mod tests {
         // Blocks shorter than the steps: every row as it is.
         let rec = reader(text).read_averaged(0.1, 10).unwrap();
         assert_eq!(rec.column("x").unwrap(), &[1.0, 3.0, 10.0, 20.0, 30.0, 7.0]);
+    }
+
+    /// The observer hears how many rows are read every `OBSERVED_EVERY` rows, of an averaged
+    /// read too, and stops the read where it returns `false`, with an error naming the line.
+    #[test]
+    fn an_observed_read_reports_its_rows_and_stops_when_told() {
+        let every = RecordingReader::<&[u8]>::OBSERVED_EVERY;
+        let rows = 3 * every + 5;
+        let mut text = String::from("time_s,x\n");
+        for i in 0..rows {
+            text.push_str(&format!("{i},{}\n", 2 * i));
+        }
+        for block_s in [None, Some(100.0)] {
+            let mut heard = Vec::new();
+            let rec = reader(&text)
+                .read_observed(usize::MAX, block_s, &mut |n| {
+                    heard.push(n);
+                    true
+                })
+                .unwrap();
+            assert_eq!(heard, [every, 2 * every, 3 * every]);
+            let expected = block_s.map_or(rows, |b| (rows as f64 / b).ceil() as u64);
+            assert_eq!(rec.len() as u64, expected);
+        }
+        let err = reader(&text)
+            .read_observed(usize::MAX, None, &mut |n| n < 2 * every)
+            .unwrap_err();
+        // Row 2·every is on line 2·every + 1 (the header is line 1).
+        assert_eq!(
+            err.to_string(),
+            format!("t.csv: line {}: reading stopped here", 2 * every + 1)
+        );
     }
 
     /// Past the limit the read stops with an error naming the file and the line where the row

@@ -145,6 +145,13 @@ pub enum RecordingError {
         /// The blocks the rows were averaged over, when they were.
         block_s: Option<f64>,
     },
+    /// The caller stopped the read (see [`crate::signal::RecordingReader::read_observed`]);
+    /// nothing read is kept.
+    #[error("{at}: reading stopped here")]
+    Stopped {
+        /// The row the read stopped at.
+        at: Location,
+    },
     /// Rows were to be averaged over blocks that are not a positive length of time.
     #[error(
         "{source_name}: cannot average over blocks of {block_s} s (a block is a positive number of seconds)"
