@@ -843,6 +843,19 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
     assert!(!offered.iter().any(|c| c == "time_s"));
     type_into(h, "Compared column", &target);
 
+    // A block length that is no length of time is refused before any job starts.
+    type_into(h, "Average over (s)", "-5");
+    click(h, "Analyse");
+    let lab = &h.state().state.model_lab.discrepancy;
+    assert!(lab.running.is_none());
+    let error = lab.error.clone().unwrap_or_default();
+    assert!(
+        error.contains("`-5` is not a positive number of seconds"),
+        "{error}"
+    );
+    assert!(shows(h, "not a positive number of seconds"));
+    h.state_mut().settings.forms.disc_average_s.clear();
+
     // Cancel frees the panel at once (the analysis stops at its next stopping point).
     click(h, "Analyse");
     assert!(h.state().state.model_lab.discrepancy.running.is_some());
@@ -942,8 +955,8 @@ fn a_missing_file_shows_the_error_in_the_model_lab() {
     assert!(shows(h, "Analyse"), "the panel is free again");
 }
 
-/// Bad input comes back as the library's own message: a target missing from a file, two
-/// recordings that do not overlap in time, and a recording longer than the analysis takes.
+/// Bad input comes back as the library's own message: a target missing from a file and two
+/// recordings that do not overlap in time.
 #[test]
 fn the_discrepancy_job_reports_the_librarys_errors() {
     use servosight::ui::jobs::{JobContext, JobStop};
@@ -959,6 +972,7 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
             sim: sim.to_path_buf(),
             real: real.to_path_buf(),
             target: target.into(),
+            average_s: None,
         };
         match run_discrepancy(request, &context).err() {
             Some(JobStop::Failed(message)) => message,
@@ -983,23 +997,6 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
     servosight::signal::write_recording(&later_path, &later).expect("written");
     let message = failure(&sim, &later_path, &target);
     assert!(message.contains("do not overlap in time"), "{message}");
-    // A simulation longer than the analysis takes is refused while it is read, before it
-    // fills the memory the HMI shares with the live machine's history.
-    let limit = servosight::discrepancy::MAX_ROWS;
-    let long_path = dir.path().join("long.csv");
-    let mut text = String::from("time_s,S.stator_temp_C\n");
-    for i in 0..=limit {
-        use std::fmt::Write as _;
-        writeln!(text, "{},20", i as f64 / 1000.0).expect("text");
-    }
-    std::fs::write(&long_path, text).expect("written");
-    let message = failure(&long_path, &real, "S.stator_temp_C");
-    assert!(
-        message.contains("long.csv")
-            && message.contains(&format!("more than {limit} rows"))
-            && message.contains("--average"),
-        "{message}"
-    );
     let stages: Vec<String> = rx
         .try_iter()
         .filter_map(|m| match m {
@@ -1014,6 +1011,96 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
     ] {
         assert!(stages.iter().any(|s| s.starts_with(phase)), "{stages:?}");
     }
+}
+
+/// A recording longer than the analysis takes is refused while it is read, before it fills the
+/// memory the HMI shares with the live machine's history, with the advice to average it; read
+/// averaged over blocks of time (the panel's "Average over (s)"), the same file is analysed,
+/// and the job says it averages while it reads and the report says it was read averaged.
+#[test]
+fn the_discrepancy_job_refuses_a_recording_too_long_or_reads_it_averaged() {
+    use servosight::ui::jobs::{JobContext, JobMessage, JobStop};
+    use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
+    use std::fmt::Write as _;
+    use std::sync::{Arc, atomic::AtomicBool};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let limit = servosight::discrepancy::MAX_ROWS;
+    let (long, real) = (dir.path().join("long.csv"), dir.path().join("real.csv"));
+    // One row past the limit at 1 kHz, and the real stator at 1 Hz, a tenth of a kelvin off.
+    let stator = |t: f64| 20.0 + (1.0 - (-t / 600.0).exp());
+    let mut text = String::from("time_s,S.stator_temp_C\n");
+    for i in 0..=limit {
+        let t = i as f64 / 1000.0;
+        writeln!(text, "{t},{}", stator(t)).expect("text");
+    }
+    std::fs::write(&long, &text).expect("written");
+    let mut text = String::from("time_s,S.stator_temp_C\n");
+    for i in 0..=limit / 1000 {
+        let t = i as f64;
+        writeln!(text, "{t},{}", stator(t) + 0.1 * (t / 97.0).sin()).expect("text");
+    }
+    std::fs::write(&real, &text).expect("written");
+    let (tx, rx) = std::sync::mpsc::sync_channel(1 << 16);
+    let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
+    let request = |average_s| DiscrepancyRequest {
+        sim: long.clone(),
+        real: real.clone(),
+        target: "S.stator_temp_C".into(),
+        average_s,
+    };
+    let stages = || -> Vec<String> {
+        rx.try_iter()
+            .filter_map(|m| match m {
+                JobMessage::Progress(p) => Some(p.stage),
+                _ => None,
+            })
+            .collect()
+    };
+    let message = match run_discrepancy(request(None), &context) {
+        Err(JobStop::Failed(message)) => message,
+        other => panic!("expected a failure, got {other:?}"),
+    };
+    assert!(
+        message.contains(&format!(
+            "long.csv: line {}: more than {limit} rows",
+            limit + 2
+        )) && message.contains("Average over"),
+        "{message}"
+    );
+    assert!(
+        stages()
+            .iter()
+            .any(|s| s.starts_with("reading the simulation (")),
+        "the read reports its rows"
+    );
+    // Blocks too short to bring it under the limit: refused, advised to lengthen them.
+    let message = match run_discrepancy(request(Some(0.0005)), &context) {
+        Err(JobStop::Failed(message)) => message,
+        other => panic!("expected a failure, got {other:?}"),
+    };
+    assert!(
+        message.contains(&format!(
+            "more than {limit} rows averaged over 0.0005 s blocks"
+        )) && message.contains("longer blocks"),
+        "{message}"
+    );
+    stages();
+    let outcome = run_discrepancy(request(Some(1.0)), &context).expect("analysed averaged");
+    let note = &outcome.report.alignment.note;
+    assert!(
+        note.starts_with(
+            "read averaged (the simulation over 1 s blocks, the real recording over 1 s blocks)"
+        ),
+        "{note}"
+    );
+    assert_eq!(outcome.report.rows, limit / 1000, "{note}");
+    let seen = stages();
+    assert!(
+        seen.iter().any(
+            |s| s.starts_with("reading the simulation (") && s.ends_with("averaging over 1 s)")
+        ),
+        "{seen:?}"
+    );
 }
 
 /// The Model lab's job reports the analysis's own progress (between reading the files and
@@ -1043,7 +1130,13 @@ fn cancelling_the_discrepancy_job_stops_the_analysis() {
         }
         seen
     });
-    let outcome = run_discrepancy(DiscrepancyRequest { sim, real, target }, &context);
+    let request = DiscrepancyRequest {
+        sim,
+        real,
+        target,
+        average_s: None,
+    };
+    let outcome = run_discrepancy(request, &context);
     drop(context);
     let seen = operator.join().expect("the operator thread");
     assert!(

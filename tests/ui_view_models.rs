@@ -1027,6 +1027,7 @@ fn discrepancy_outcome(
             sim: "sim.csv".into(),
             real: "real.csv".into(),
             target: target.into(),
+            average_s: None,
         },
         report,
     )

@@ -159,6 +159,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             sim: args.sim.clone(),
             real: args.real.clone(),
             target: args.target.clone(),
+            average_s: args.average,
         };
         let view = result_view(&DiscrepancyOutcome::new(request, report), PLOT_POINTS);
         let canvas = render_discrepancy(&view, false, PLOT_WIDTH_PX);

@@ -13,7 +13,8 @@ use super::jobs::{FitOutcome, FitRequest, Job, JobMessage, run_fit};
 use super::panels::{self, Forms, Tab, UiCommand};
 use super::session::{Session, SessionCommand};
 use super::sim_vs_real::{
-    DiscrepancyOutcome, DiscrepancyRequest, SharedColumns, read_shared_columns, run_discrepancy,
+    DiscrepancyOutcome, DiscrepancyRequest, SharedColumns, parse_average, read_shared_columns,
+    run_discrepancy,
 };
 use super::state::{
     CompensationState, Event, EventKind, HmiState, LinkSnapshot, PushFlow, Severity,
@@ -479,10 +480,19 @@ impl HmiApp {
             return;
         }
         let forms = &self.settings.forms;
+        let lab = &mut self.state.model_lab.discrepancy;
+        let average_s = match parse_average(&forms.disc_average_s) {
+            Ok(average_s) => average_s,
+            Err(reason) => {
+                lab.error = Some(reason);
+                return;
+            }
+        };
         let request = DiscrepancyRequest {
             sim: PathBuf::from(forms.disc_sim.trim()),
             real: PathBuf::from(forms.disc_real.trim()),
             target: forms.disc_target.trim().to_string(),
+            average_s,
         };
         let title = format!(
             "discrepancy of {} ({} vs {})",
@@ -490,7 +500,6 @@ impl HmiApp {
             request.sim.display(),
             request.real.display()
         );
-        let lab = &mut self.state.model_lab.discrepancy;
         match Job::spawn(title.clone(), move |c| run_discrepancy(request, c)) {
             Ok(job) => {
                 lab.running = Some(super::state::JobProgress {

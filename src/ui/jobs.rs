@@ -10,7 +10,7 @@ use std::sync::mpsc;
 
 use super::state::JobProgress;
 use crate::fit::{Design, FitReport, ols, parse_terms, sensitivity};
-use crate::signal::{Recording, RecordingReader};
+use crate::signal::{Recording, RecordingError, RecordingReader};
 
 /// What a job reports.
 #[derive(Debug)]
@@ -165,18 +165,19 @@ pub struct RowLimit {
     pub advice: &'static str,
 }
 
-/// Reads a recording file on a job's thread, reporting `stage (N rows)` with a fraction that
-/// moves through `span` as the bytes are read, and stopping within 8192 rows of a cancel. Given
-/// a [`RowLimit`], a file with more rows fails the job at the row past them, before the rest is
-/// read.
+/// Reads a recording file on a job's thread, whole or (given `average_s`) averaged over blocks
+/// of that many seconds as [`RecordingReader::read_averaged`] does, reporting `stage (N rows)`
+/// with a fraction that moves through `span` as the bytes are read, and stopping within
+/// [`RecordingReader::OBSERVED_EVERY`] rows of a cancel. Given a [`RowLimit`], a file with more
+/// rows (or blocks) fails the job at the row past them, before the rest is read.
 pub fn read_with_progress<T>(
     path: &std::path::Path,
     context: &JobContext<T>,
     stage: &str,
     span: std::ops::Range<f32>,
     limit: Option<RowLimit>,
+    average_s: Option<f64>,
 ) -> Result<Recording, JobStop> {
-    let failed = |e: &dyn std::fmt::Display| JobStop::Failed(e.to_string());
     let file = std::fs::File::open(path)
         .map_err(|e| JobStop::Failed(format!("{}: {e}", path.display())))?;
     // The size only scales the progress bar: an unknown size must not stop the read.
@@ -187,34 +188,31 @@ pub fn read_with_progress<T>(
         read: Arc::clone(&read),
     };
     let source = path.display().to_string();
-    let mut reader = RecordingReader::from_reader(counting, &source).map_err(|e| failed(&e))?;
-    let mut recording = Recording::with_schema(source.clone(), reader.schema().clone());
-    for (key, value) in reader.metadata().to_vec() {
-        recording.set_metadata(&key, &value);
-    }
-    let mut row = Vec::new();
-    let mut rows = 0u64;
-    while reader.read_row(&mut row).map_err(|e| failed(&e))? {
-        if let Some(RowLimit { rows, advice }) = limit
-            && recording.len() >= rows
-        {
-            return Err(JobStop::Failed(format!(
-                "{source}: more than {rows} rows; {advice}"
-            )));
-        }
-        recording.push_row(&row).map_err(|e| failed(&e))?;
-        rows += 1;
-        if rows.is_multiple_of(8192) {
+    let reader = RecordingReader::from_reader(counting, &source)
+        .map_err(|e| JobStop::Failed(e.to_string()))?;
+    let averaging = average_s.map_or(String::new(), |s| format!(", averaging over {s} s"));
+    // `false` (stop) once the job is cancelled.
+    let mut observe = |rows: u64| {
+        let fraction = (read.load(Ordering::Relaxed) as f32 / size as f32).min(1.0);
+        context.progress(
+            &format!("{stage} ({rows} rows{averaging})"),
+            Some(span.start + (span.end - span.start) * fraction),
+        );
+        context.check().is_ok()
+    };
+    let most = limit.map_or(usize::MAX, |l| l.rows);
+    match reader.read_observed(most, average_s, &mut observe) {
+        Ok(recording) => {
             context.check()?;
-            let fraction = (read.load(Ordering::Relaxed) as f32 / size as f32).min(1.0);
-            context.progress(
-                &format!("{stage} ({rows} rows)"),
-                Some(span.start + (span.end - span.start) * fraction),
-            );
+            Ok(recording)
         }
+        Err(RecordingError::Stopped { .. }) => Err(JobStop::Cancelled),
+        Err(e @ RecordingError::TooManyRows { .. }) => {
+            let advice = limit.map_or("", |l| l.advice);
+            Err(JobStop::Failed(format!("{e}; {advice}")))
+        }
+        Err(e) => Err(JobStop::Failed(e.to_string())),
     }
-    context.check()?;
-    Ok(recording)
 }
 
 /// Reads the database and fits the model, reporting progress; cancellable while the file is
@@ -237,6 +235,7 @@ pub fn run_fit(
         context,
         "reading the database",
         0.0..0.8,
+        None,
         None,
     )?;
     let rows = recording.len();

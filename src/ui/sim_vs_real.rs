@@ -20,7 +20,7 @@ use crate::signal::RecordingReader;
 use crate::signal::channel::TIME;
 
 /// What the Model lab asks the discrepancy analysis for.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct DiscrepancyRequest {
     /// The simulation (CSV v1).
     pub sim: PathBuf,
@@ -28,6 +28,26 @@ pub struct DiscrepancyRequest {
     pub real: PathBuf,
     /// The column compared.
     pub target: String,
+    /// Read both recordings averaged over blocks of this many seconds (as
+    /// `servosight discrepancy --average` does); `None` reads them at their own rate.
+    pub average_s: Option<f64>,
+}
+
+/// The Model lab's "Average over (s)" field as a block length: blank reads the recordings at
+/// their own rate, a positive number of seconds averages them; anything else is refused with
+/// a message that quotes it.
+pub fn parse_average(text: &str) -> Result<Option<f64>, String> {
+    let text = text.trim();
+    if text.is_empty() {
+        return Ok(None);
+    }
+    match text.parse::<f64>() {
+        Ok(s) if s.is_finite() && s > 0.0 => Ok(Some(s)),
+        _ => Err(format!(
+            "average over: `{text}` is not a positive number of seconds (leave it blank to \
+             read the recordings at their own rate)"
+        )),
+    }
 }
 
 /// The channels of [`DiscrepancyOutcome::plot`], in storage order.
@@ -113,11 +133,17 @@ pub fn run_discrepancy(
     context.progress("reading the simulation", Some(0.0));
     // Never more rows than the analysis takes: a recording too long for it is refused while
     // it is read, before it fills the memory the HMI shares with the live machine's history.
+    let advice = if request.average_s.is_some() {
+        "the analysis takes at most that many rows of each recording; average them over longer \
+         blocks of time (Average over)"
+    } else {
+        "the analysis takes at most that many rows of each recording; read them averaged over \
+         blocks of a few seconds (Average over), which a temperature that moves over minutes \
+         does not notice"
+    };
     let limit = Some(RowLimit {
         rows: MAX_ROWS,
-        advice: "the analysis takes at most that many rows of each recording; average them over \
-                 blocks of time first (`servosight discrepancy --average SECONDS` reads them \
-                 that way)",
+        advice,
     });
     let sim = read_with_progress(
         &request.sim,
@@ -125,6 +151,7 @@ pub fn run_discrepancy(
         "reading the simulation",
         0.0..0.2,
         limit,
+        request.average_s,
     )?;
     context.progress("reading the real recording", Some(0.2));
     let real = read_with_progress(
@@ -133,6 +160,7 @@ pub fn run_discrepancy(
         "reading the real recording",
         0.2..0.4,
         limit,
+        request.average_s,
     )?;
     let observer = |fraction: f32, stage: &str| {
         let span = ANALYSIS_SPAN.end - ANALYSIS_SPAN.start;
@@ -189,6 +217,23 @@ pub fn read_shared_columns(
 mod tests {
     use super::*;
     use crate::discrepancy::PlotData;
+
+    /// Blank reads every row; a positive number of seconds (spaces around it allowed) is a
+    /// block; zero, negative, not-a-number, infinite and words are refused, quoted.
+    #[test]
+    fn the_average_field_is_blank_or_a_positive_number_of_seconds() {
+        assert_eq!(parse_average(""), Ok(None));
+        assert_eq!(parse_average("  "), Ok(None));
+        assert_eq!(parse_average(" 2.5 "), Ok(Some(2.5)));
+        assert_eq!(parse_average("1e-3"), Ok(Some(0.001)));
+        for bad in ["0", "-1", "NaN", "inf", "ten", "1 s"] {
+            let error = parse_average(bad).unwrap_err();
+            assert!(
+                error.contains(&format!("`{bad}` is not a positive number of seconds")),
+                "{error}"
+            );
+        }
+    }
 
     #[test]
     fn the_plot_pyramid_keeps_every_series_and_decimates_on_request() {

@@ -187,6 +187,9 @@ pub struct Forms {
     pub disc_real: String,
     /// The sim-vs-real compared column.
     pub disc_target: String,
+    /// The sim-vs-real blocks of time (seconds) both recordings are averaged over; blank
+    /// reads them at their own rate.
+    pub disc_average_s: String,
     /// Where the sim-vs-real PNG export goes.
     pub disc_png_path: String,
     /// The Events panel's text filter.

@@ -179,6 +179,20 @@ pub fn discrepancy_ui(
                     });
             });
             ui.end_row();
+            let label = ui.label("Average over (s)");
+            ui.horizontal(|ui| {
+                ui.add(
+                    egui::TextEdit::singleline(&mut forms.disc_average_s)
+                        .hint_text("every row")
+                        .desired_width(80.0),
+                )
+                .labelled_by(label.id);
+                ui.label(
+                    "blank reads every row; a few seconds reads a long, fast recording \
+                     averaged over blocks of that length",
+                );
+            });
+            ui.end_row();
         });
     if let Some(error) = &view.columns_error {
         ui.label(format!("cannot offer the shared columns: {error}"));
