@@ -911,6 +911,80 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
     let image = image::open(&png).expect("a PNG that decodes").to_rgba8();
     assert_eq!(image.width(), 1400);
     assert!(image.height() > 600, "{} px tall", image.height());
+
+    // A report that cannot be written says where and why.
+    let nowhere = f._dir.path().join("no-such-dir").join("r.json");
+    assert!(shows(h, "Report (JSON)"));
+    h.state_mut().settings.forms.disc_report_path = nowhere.display().to_string();
+    click(h, "Save report");
+    step_until(h, "the failed save", |app| {
+        app.state
+            .model_lab
+            .discrepancy
+            .report_note
+            .as_deref()
+            .is_some_and(|note| note.starts_with("the report was not saved"))
+    });
+    settle(h);
+    assert!(shows(h, "no-such-dir"));
+
+    // The report saved on a job is the command's: its JSON contract and its printed text.
+    let json = f._dir.path().join("sim-vs-real.json");
+    h.state_mut().settings.forms.disc_report_path = json.display().to_string();
+    click(h, "Save report");
+    step_until(h, "the report's save", |app| {
+        app.state
+            .model_lab
+            .discrepancy
+            .report_note
+            .as_deref()
+            .is_some_and(|note| note != "writing the report…")
+    });
+    settle(h);
+    let text = f._dir.path().join("sim-vs-real.txt");
+    let note = h.state().state.model_lab.discrepancy.report_note.clone();
+    assert_eq!(
+        note.as_deref(),
+        Some(
+            format!(
+                "report written to {} and {}",
+                json.display(),
+                text.display()
+            )
+            .as_str()
+        )
+    );
+    assert!(shows(h, "report written to"));
+    let cli = crate::common::servosight(&[
+        "discrepancy",
+        "--sim",
+        sim.to_str().expect("utf-8 path"),
+        "--real",
+        real.to_str().expect("utf-8 path"),
+        "--target",
+        &target,
+        "--json",
+        "-",
+    ]);
+    assert!(cli.status.success());
+    let from_cli: serde_json::Value = serde_json::from_slice(&cli.stdout).expect("CLI JSON");
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("saved JSON"))
+            .expect("saved JSON parses");
+    assert_eq!(saved, from_cli);
+    let printed = crate::common::servosight(&[
+        "discrepancy",
+        "--sim",
+        sim.to_str().expect("utf-8 path"),
+        "--real",
+        real.to_str().expect("utf-8 path"),
+        "--target",
+        &target,
+    ]);
+    assert_eq!(
+        std::fs::read_to_string(&text).expect("saved text"),
+        String::from_utf8_lossy(&printed.stdout)
+    );
 }
 
 #[test]

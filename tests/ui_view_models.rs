@@ -1058,6 +1058,8 @@ fn discrepancy_view_models() {
     s.model_lab.discrepancy.columns = Some(columns);
 
     s.model_lab.discrepancy.result = Some(discrepancy_outcome(&missing_pair, &missing.target));
+    s.model_lab.discrepancy.report_note =
+        Some("report written to /tmp/copper.json and /tmp/copper.txt".into());
     let view = vm::discrepancy::build(&s, POINTS);
     let result = view.result.as_ref().expect("a result");
     assert!(result.missing_physics);
@@ -1066,6 +1068,8 @@ fn discrepancy_view_models() {
     assert!(result.plots.residual.points.len() <= POINTS);
     insta::assert_yaml_snapshot!("discrepancy_missing_physics", view);
 
+    // A new result clears the notes of the last one's exports.
+    s.model_lab.discrepancy.report_note = None;
     s.model_lab.discrepancy.result =
         Some(discrepancy_outcome(&consistent_pair, &consistent.target));
     let view = vm::discrepancy::build(&s, POINTS);

@@ -13,8 +13,8 @@ use super::jobs::{FitOutcome, FitRequest, Job, JobMessage, run_fit};
 use super::panels::{self, Forms, Tab, UiCommand};
 use super::session::{Session, SessionCommand};
 use super::sim_vs_real::{
-    DiscrepancyOutcome, DiscrepancyRequest, SharedColumns, parse_average, read_shared_columns,
-    run_discrepancy,
+    DiscrepancyOutcome, DiscrepancyRequest, SavedDiscrepancyReport, SharedColumns, parse_average,
+    read_shared_columns, run_discrepancy, run_save_report,
 };
 use super::state::{
     CompensationState, Event, EventKind, HmiState, LinkSnapshot, PushFlow, Severity,
@@ -133,6 +133,7 @@ pub struct HmiApp {
     discrepancy_job: Option<Job<DiscrepancyOutcome>>,
     /// Drawing the sim-vs-real analysis into a PNG.
     discrepancy_png_job: Option<Job<PngOutcome>>,
+    discrepancy_report_job: Option<Job<SavedDiscrepancyReport>>,
     columns_job: Option<Job<SharedColumns>>,
     /// The (simulation, real) paths whose shared columns were last asked for.
     columns_asked: Option<(String, String)>,
@@ -194,6 +195,12 @@ impl HmiApp {
                 .display()
                 .to_string();
         }
+        if settings.forms.disc_report_path.is_empty() {
+            settings.forms.disc_report_path = std::env::temp_dir()
+                .join("servosight-sim-vs-real.json")
+                .display()
+                .to_string();
+        }
         if settings.forms.workpiece_diameter_mm.is_empty() {
             settings.forms.workpiece_diameter_mm = "80".into();
         }
@@ -210,6 +217,7 @@ impl HmiApp {
             png_job: None,
             discrepancy_job: None,
             discrepancy_png_job: None,
+            discrepancy_report_job: None,
             columns_job: None,
             columns_asked: None,
             depth_refreshed: None,
@@ -262,6 +270,7 @@ impl HmiApp {
             || self.png_job.is_some()
             || self.discrepancy_job.is_some()
             || self.discrepancy_png_job.is_some()
+            || self.discrepancy_report_job.is_some()
             || self.columns_job.is_some();
         ctx.request_repaint_after(if live {
             Duration::from_millis(33)
@@ -419,6 +428,9 @@ impl HmiApp {
                     );
                     lab.result = Some(outcome);
                     lab.error = None;
+                    // The notes told of the last result's exports, not of this one.
+                    lab.png_note = None;
+                    lab.report_note = None;
                     self.job_event(Severity::Normal, text);
                 }
                 Err(reason) => {
@@ -430,6 +442,17 @@ impl HmiApp {
         }
         if let Some(note) = poll_png_export(&mut self.discrepancy_png_job) {
             self.state.model_lab.discrepancy.png_note = Some(note);
+        }
+        let mut ignored = None;
+        if let Some(end) = poll_job(&mut self.discrepancy_report_job, &mut ignored) {
+            self.state.model_lab.discrepancy.report_note = Some(match end {
+                Ok(saved) => format!(
+                    "report written to {} and {}",
+                    saved.json.display(),
+                    saved.text.display()
+                ),
+                Err(reason) => format!("the report was not saved: {reason}"),
+            });
         }
         let mut ignored = None;
         if let Some(end) = poll_job(&mut self.columns_job, &mut ignored) {
@@ -719,6 +742,29 @@ impl HmiApp {
         lab.png_note = Some(note);
     }
 
+    /// Saves the last sim-vs-real analysis's report (JSON and text) on a job.
+    fn save_discrepancy_report(&mut self) {
+        if self.discrepancy_report_job.is_some() {
+            return;
+        }
+        let lab = &mut self.state.model_lab.discrepancy;
+        let Some(outcome) = &lab.result else {
+            lab.report_note = Some("nothing to save: run an analysis first".into());
+            return;
+        };
+        let report = outcome.report.clone();
+        let json = PathBuf::from(self.settings.forms.disc_report_path.trim());
+        match Job::spawn("sim-vs-real report", move |c| {
+            run_save_report(report, json, c)
+        }) {
+            Ok(job) => {
+                self.discrepancy_report_job = Some(job);
+                lab.report_note = Some("writing the report…".into());
+            }
+            Err(error) => lab.report_note = Some(format!("cannot start saving: {error}")),
+        }
+    }
+
     fn use_proposal(&mut self, id: &str) {
         let proposals = vm::compensation::estimate_proposals(&self.state);
         let comp = &mut self.state.compensation;
@@ -972,6 +1018,7 @@ impl HmiApp {
             }
             UiCommand::StartDiscrepancy => self.start_discrepancy(),
             UiCommand::ExportDiscrepancyPng => self.export_discrepancy_png(),
+            UiCommand::SaveDiscrepancyReport => self.save_discrepancy_report(),
             UiCommand::CancelDiscrepancy => self.cancel_discrepancy(),
             UiCommand::SetRecording(on) => self.send(SessionCommand::SetRecording(on)),
             UiCommand::ToggleEventKind(kind) => {

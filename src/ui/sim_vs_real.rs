@@ -180,6 +180,81 @@ pub fn run_discrepancy(
     Ok(DiscrepancyOutcome::new(request, report))
 }
 
+/// Where [`save_report`] wrote a report.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SavedDiscrepancyReport {
+    /// The JSON report, as `servosight discrepancy --json` writes it.
+    pub json: PathBuf,
+    /// The readable report beside it, as the command prints it.
+    pub text: PathBuf,
+}
+
+/// The readable report's file for the JSON report at `json`: the same name ending `.txt`.
+pub fn text_path_beside(json: &Path) -> PathBuf {
+    json.with_extension("txt")
+}
+
+/// Writes `report` as the command's JSON contract to `json` and its readable text (what
+/// `servosight discrepancy` prints) beside it ([`text_path_beside`]), each to a temporary
+/// file in the same directory that is renamed into place once whole, so a failed save never
+/// leaves half a report where an earlier one was. A path that names no file, or whose text
+/// report would be the JSON itself (a `.txt` name), is refused before anything is written.
+pub fn save_report(
+    report: &DiscrepancyReport,
+    json: &Path,
+) -> Result<SavedDiscrepancyReport, String> {
+    if json.as_os_str().is_empty() || json.file_name().is_none() {
+        return Err("choose a file for the report (its JSON; the text goes beside it)".into());
+    }
+    let text = text_path_beside(json);
+    if text == json {
+        return Err(format!(
+            "{}: the readable report would overwrite the JSON; give the JSON file a .json name",
+            json.display()
+        ));
+    }
+    let contract = serde_json::to_string_pretty(report)
+        .map_err(|e| format!("cannot serialise the report: {e}"))?
+        + "\n";
+    for (path, body) in [(json, contract), (text.as_path(), report.summary())] {
+        write_whole(path, body.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(SavedDiscrepancyReport {
+        json: json.to_path_buf(),
+        text,
+    })
+}
+
+/// Writes `bytes` to `path` through a temporary file beside it, synced and then renamed.
+fn write_whole(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    let partial = path.with_file_name(name);
+    let written = std::fs::File::create(&partial).and_then(|mut file| {
+        file.write_all(bytes)?;
+        file.sync_all()
+    });
+    match written.and_then(|()| std::fs::rename(&partial, path)) {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            // Best effort: the partial file is ours and worthless; the error is what matters.
+            let _ = std::fs::remove_file(&partial);
+            Err(e)
+        }
+    }
+}
+
+/// Saves the last analysis's report on a job thread (file I/O stays off the UI thread).
+pub fn run_save_report(
+    report: DiscrepancyReport,
+    json: PathBuf,
+    context: &JobContext<SavedDiscrepancyReport>,
+) -> Result<SavedDiscrepancyReport, JobStop> {
+    context.progress("writing the report", None);
+    save_report(&report, &json).map_err(JobStop::Failed)
+}
+
 /// The columns two recordings share (besides `time_s`), in the real recording's order.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SharedColumns {
@@ -218,6 +293,50 @@ mod tests {
     use super::*;
     use crate::discrepancy::PlotData;
 
+    /// The report is written as the command's JSON and text, the text beside the JSON, with
+    /// nothing else left in the directory; a second save replaces both. A path the text would
+    /// share with the JSON, or no file at all, is refused before anything is written, and a
+    /// directory that does not exist is named in the error.
+    #[test]
+    fn a_saved_report_is_the_commands_json_and_text_side_by_side() {
+        let dir = tempfile::tempdir().unwrap();
+        let report = consistent_report(10);
+        let json = dir.path().join("bearing.json");
+        let saved = save_report(&report, &json).unwrap();
+        assert_eq!(saved.text, dir.path().join("bearing.txt"));
+        let written: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(written, serde_json::to_value(&report).unwrap());
+        assert_eq!(
+            std::fs::read_to_string(&saved.text).unwrap(),
+            report.summary()
+        );
+        let mut other = consistent_report(20);
+        other.target = "S.torque_Nm".into();
+        save_report(&other, &json).unwrap();
+        let written: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(written["target"], "S.torque_Nm");
+        let mut names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["bearing.json", "bearing.txt"]);
+
+        let error = save_report(&report, &dir.path().join("notes.txt")).unwrap_err();
+        assert!(
+            error.contains("notes.txt: the readable report would overwrite"),
+            "{error}"
+        );
+        let error = save_report(&report, Path::new("")).unwrap_err();
+        assert!(error.starts_with("choose a file for the report"), "{error}");
+        let missing = dir.path().join("no-such-dir").join("r.json");
+        let error = save_report(&report, &missing).unwrap_err();
+        assert!(error.contains("no-such-dir"), "{error}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
     /// Blank reads every row; a positive number of seconds (spaces around it allowed) is a
     /// block; zero, negative, not-a-number, infinite and words are refused, quoted.
     #[test]
@@ -235,12 +354,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_plot_pyramid_keeps_every_series_and_decimates_on_request() {
-        let n = 1000;
-        let time_s: Vec<f64> = (0..n).map(|i| i as f64).collect();
-        let ramp: Vec<f64> = time_s.iter().map(|t| t * 0.5).collect();
-        let mut report = crate::discrepancy::DiscrepancyReport {
+    /// A consistent report of `n` rows without plot series.
+    fn consistent_report(n: usize) -> DiscrepancyReport {
+        crate::discrepancy::DiscrepancyReport {
             target: "S.stator_temp_C".into(),
             rows: n,
             verdict: crate::discrepancy::Verdict::Consistent,
@@ -282,7 +398,15 @@ mod tests {
                 steps: Vec::new(),
             },
             plot: PlotData::default(),
-        };
+        }
+    }
+
+    #[test]
+    fn the_plot_pyramid_keeps_every_series_and_decimates_on_request() {
+        let n = 1000;
+        let time_s: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let ramp: Vec<f64> = time_s.iter().map(|t| t * 0.5).collect();
+        let mut report = consistent_report(n);
         report.plot = PlotData {
             target: report.target.clone(),
             time_s: time_s.clone(),

@@ -444,6 +444,8 @@ pub struct DiscrepancyState {
     pub columns_error: Option<String>,
     /// How the last PNG export of the result went (or how far it is).
     pub png_note: Option<String>,
+    /// How the last save of the result's report went (or that it is being written).
+    pub report_note: Option<String>,
 }
 
 /// A warm-up report the operator signed off, as saved.

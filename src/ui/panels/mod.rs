@@ -124,6 +124,8 @@ pub enum UiCommand {
     StartDiscrepancy,
     /// Draw the last sim-vs-real analysis into the Model lab's PNG file.
     ExportDiscrepancyPng,
+    /// Save the last sim-vs-real analysis's report (JSON and text) to the Model lab's file.
+    SaveDiscrepancyReport,
     /// Cancel the running sim-vs-real analysis (the panel is free at once).
     CancelDiscrepancy,
     /// Switch the recorder on or off.
@@ -192,6 +194,8 @@ pub struct Forms {
     pub disc_average_s: String,
     /// Where the sim-vs-real PNG export goes.
     pub disc_png_path: String,
+    /// Where the sim-vs-real report's JSON goes (its text beside it).
+    pub disc_report_path: String,
     /// The Events panel's text filter.
     #[serde(skip)]
     pub event_text: String,

@@ -218,6 +218,15 @@ pub fn discrepancy_ui(
             ui.label(note);
         }
     });
+    ui.horizontal_wrapped(|ui| {
+        labelled_text(ui, "Report (JSON)", &mut forms.disc_report_path, 320.0);
+        if ui.button("Save report").clicked() {
+            commands.push(UiCommand::SaveDiscrepancyReport);
+        }
+        if let Some(note) = &view.report_note {
+            ui.label(note);
+        }
+    });
     egui::ScrollArea::vertical().show(ui, |ui| result_ui(ui, result));
 }
 

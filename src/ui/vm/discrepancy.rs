@@ -137,6 +137,8 @@ pub struct DiscrepancyView {
     pub error: Option<String>,
     /// How the last PNG export of the result went (or how far it is).
     pub png_note: Option<String>,
+    /// How the last save of the result's report went (or that it is being written).
+    pub report_note: Option<String>,
 }
 
 /// Builds the view, drawing at most `max_points` points per line.
@@ -153,6 +155,7 @@ pub fn build(state: &HmiState, max_points: usize) -> DiscrepancyView {
         result: d.result.as_ref().map(|o| result_view(o, max_points)),
         error: d.error.clone(),
         png_note: d.png_note.clone(),
+        report_note: d.report_note.clone(),
     }
 }
 
