@@ -913,23 +913,53 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
     assert!(image.height() > 600, "{} px tall", image.height());
 
     // A report that cannot be written says where and why.
-    let nowhere = f._dir.path().join("no-such-dir").join("r.json");
     assert!(shows(h, "Report (JSON)"));
-    h.state_mut().settings.forms.disc_report_path = nowhere.display().to_string();
-    click(h, "Save report");
-    step_until(h, "the failed save", |app| {
-        app.state
-            .model_lab
-            .discrepancy
-            .report_note
-            .as_deref()
-            .is_some_and(|note| note.starts_with("the report was not saved"))
-    });
-    settle(h);
+    let nowhere = f._dir.path().join("no-such-dir").join("r.json");
+    let note = save_discrepancy_report(h, &nowhere);
+    assert!(note.starts_with("the report was not saved"), "{note}");
     assert!(shows(h, "no-such-dir"));
 
     // The report saved on a job is the command's: its JSON contract and its printed text.
     let json = f._dir.path().join("sim-vs-real.json");
+    let text = f._dir.path().join("sim-vs-real.txt");
+    let note = save_discrepancy_report(h, &json);
+    assert_eq!(
+        note,
+        format!(
+            "report written to {} and {}",
+            json.display(),
+            text.display()
+        )
+    );
+    assert!(shows(h, "report written to"));
+    // The command on the same files, its JSON to a file and its text to stdout.
+    let cli_json = f._dir.path().join("cli.json");
+    let cli = crate::common::servosight(&[
+        "discrepancy",
+        "--sim",
+        sim.to_str().expect("utf-8 path"),
+        "--real",
+        real.to_str().expect("utf-8 path"),
+        "--target",
+        &target,
+        "--json",
+        cli_json.to_str().expect("utf-8 path"),
+    ]);
+    assert!(cli.status.success());
+    let parsed = |path: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(path).expect("a JSON report"))
+            .expect("JSON that parses")
+    };
+    assert_eq!(parsed(&json), parsed(&cli_json));
+    assert_eq!(
+        std::fs::read_to_string(&text).expect("saved text"),
+        String::from_utf8_lossy(&cli.stdout)
+    );
+}
+
+/// Saves the Model lab's sim-vs-real report to `json` with its button and returns the note
+/// the save ends with.
+fn save_discrepancy_report(h: &mut Harness<'static, HmiApp>, json: &std::path::Path) -> String {
     h.state_mut().settings.forms.disc_report_path = json.display().to_string();
     click(h, "Save report");
     step_until(h, "the report's save", |app| {
@@ -941,50 +971,8 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
             .is_some_and(|note| note != "writing the report…")
     });
     settle(h);
-    let text = f._dir.path().join("sim-vs-real.txt");
-    let note = h.state().state.model_lab.discrepancy.report_note.clone();
-    assert_eq!(
-        note.as_deref(),
-        Some(
-            format!(
-                "report written to {} and {}",
-                json.display(),
-                text.display()
-            )
-            .as_str()
-        )
-    );
-    assert!(shows(h, "report written to"));
-    let cli = crate::common::servosight(&[
-        "discrepancy",
-        "--sim",
-        sim.to_str().expect("utf-8 path"),
-        "--real",
-        real.to_str().expect("utf-8 path"),
-        "--target",
-        &target,
-        "--json",
-        "-",
-    ]);
-    assert!(cli.status.success());
-    let from_cli: serde_json::Value = serde_json::from_slice(&cli.stdout).expect("CLI JSON");
-    let saved: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("saved JSON"))
-            .expect("saved JSON parses");
-    assert_eq!(saved, from_cli);
-    let printed = crate::common::servosight(&[
-        "discrepancy",
-        "--sim",
-        sim.to_str().expect("utf-8 path"),
-        "--real",
-        real.to_str().expect("utf-8 path"),
-        "--target",
-        &target,
-    ]);
-    assert_eq!(
-        std::fs::read_to_string(&text).expect("saved text"),
-        String::from_utf8_lossy(&printed.stdout)
-    );
+    let lab = &h.state().state.model_lab.discrepancy;
+    lab.report_note.clone().unwrap_or_default()
 }
 
 #[test]
