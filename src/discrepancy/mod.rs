@@ -33,6 +33,7 @@
 //! ```
 
 pub mod align;
+pub mod budget;
 pub mod censor;
 pub mod cv;
 pub mod kept;
@@ -46,6 +47,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
+pub use budget::{RowBudget, peak_memory_bytes};
 pub use library::Physics;
 pub use localise::Region;
 pub use report::{
@@ -334,7 +336,8 @@ fn standardised(columns: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<(f64, f64)>) {
 /// command's `--average`). What happens inside a block is then lost to the corrections built
 /// from a signal's square or power (the heat of a block's mean current is not its mean heat:
 /// 0.057 °C left of a 4.6 °C copper heat over 1 s blocks of 100 Hz data, 0.006 °C at full
-/// rate, docs/discrepancy.md).
+/// rate, docs/discrepancy.md). The command and the HMI read fewer where the memory free would
+/// not hold the analysis ([`RowBudget`]).
 pub const MAX_ROWS: usize = 2_000_000;
 
 /// Analyses `real` against `sim` for `target`.
