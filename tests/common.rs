@@ -11,6 +11,15 @@ pub fn servosight(args: &[&str]) -> Output {
         .expect("the servosight binary runs")
 }
 
+/// Runs the `servosight` binary with `args` and the environment variables `env` set.
+pub fn servosight_with_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_servosight"))
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .expect("the servosight binary runs")
+}
+
 /// Standard error as text.
 pub fn stderr(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()

@@ -13,7 +13,9 @@ use servosight::discrepancy::{DiscrepancyReport, Options, Verdict, analyse};
 use servosight::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 use servosight::sim::{Effect, EffectSet, MachineParams, ScenarioKind, TwinConfig, simulate};
 
-use crate::common::{arg, light_pixels, pixels_near, servosight, stderr, stdout};
+use crate::common::{
+    arg, light_pixels, pixels_near, servosight, servosight_with_env, stderr, stdout,
+};
 
 /// The noise of the real run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -920,6 +922,7 @@ fn the_command_reports_bad_input_in_one_line() {
 /// refuses such a recording too, whoever read it.
 #[test]
 fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
+    use servosight::discrepancy::budget::FREE_MEMORY_VARIABLE;
     use servosight::discrepancy::{DiscrepancyError, MAX_ROWS};
     use std::fmt::Write as _;
     let dir = tempfile::tempdir().unwrap();
@@ -951,7 +954,8 @@ fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
             "S.stator_temp_C",
         ];
         args.extend(extra);
-        servosight(&args)
+        // Free memory stated, so that the limit is the fixed one on any machine.
+        servosight_with_env(&args, &[(FREE_MEMORY_VARIABLE, "1000000")])
     };
     let refused = run(&[]);
     assert!(!refused.status.success());
@@ -1014,6 +1018,57 @@ fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
         }
         other => panic!("expected the limit, got {:?}", other.map(|r| r.verdict)),
     }
+}
+
+/// On a machine with little memory free the command takes fewer rows than the fixed limit,
+/// refuses a longer recording while reading it with a message that says how much memory is
+/// free and how to read it averaged, and analyses it so read. (The free memory is stated
+/// through the environment: a test cannot take memory from the machine it runs on.)
+#[test]
+fn with_little_memory_free_a_shorter_recording_is_refused_or_read_averaged() {
+    use servosight::discrepancy::budget::FREE_MEMORY_VARIABLE;
+    use std::fmt::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let (sim, real) = (dir.path().join("sim.csv"), dir.path().join("real.csv"));
+    // 30,001 rows at 1 Hz: a stator warming by a kelvin, the real one a tenth off.
+    let stator = |t: f64| 20.0 + (1.0 - (-t / 600.0).exp());
+    for (path, wobble) in [(&sim, 0.0), (&real, 0.1)] {
+        let mut text = String::from("time_s,S.stator_temp_C\n");
+        for i in 0..=30_000 {
+            let t = i as f64;
+            writeln!(text, "{t},{}", stator(t) + wobble * (t / 97.0).sin()).unwrap();
+        }
+        std::fs::write(path, &text).unwrap();
+    }
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "discrepancy",
+            "--sim",
+            arg(&sim),
+            "--real",
+            arg(&real),
+            "--target",
+            "S.stator_temp_C",
+        ];
+        args.extend(extra);
+        servosight_with_env(&args, &[(FREE_MEMORY_VARIABLE, "600")])
+    };
+    let refused = run(&[]);
+    assert!(!refused.status.success());
+    let err = stderr(&refused);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    // Half of 600 MB less 250 MB, at 2.2 kB a row.
+    assert!(
+        err.contains(
+            "more than 22727 rows: with 0.6 GB of memory free, the analysis takes at \
+                      most 22727 rows of each recording"
+        ) && err.contains("--average SECONDS"),
+        "{err}"
+    );
+    let averaged = run(&["--average", "2", "--json", "-"]);
+    assert!(averaged.status.success(), "{}", stderr(&averaged));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&averaged)).unwrap();
+    assert_eq!(report["rows"], 15_001, "{report}");
 }
 
 /// Tally of a group of cases.

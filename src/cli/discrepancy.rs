@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use servosight::discrepancy::series::join_or_resume;
-use servosight::discrepancy::{MAX_ROWS, Options, analyse};
+use servosight::discrepancy::{Options, RowBudget, analyse};
 use servosight::signal::{Recording, RecordingError, RecordingReader};
 use servosight::ui::export_png::render_discrepancy;
 use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest};
@@ -60,7 +60,8 @@ pub struct Args {
     pub seed: u64,
     /// Average both recordings over blocks of this many seconds as they are read (one row
     /// per block, each column its mean there): for recordings longer than the analysis takes
-    /// at their own rate (2,000,000 rows each), e.g. 1 kHz servo data over hours.
+    /// at their own rate (2,000,000 rows each, fewer where the memory free would not hold
+    /// the analysis), e.g. 1 kHz servo data over hours.
     #[arg(long, value_name = "SECONDS")]
     pub average: Option<f64>,
 }
@@ -87,26 +88,28 @@ fn keep_freed_memory_for_reuse() {
 }
 
 /// Reads a recording for the analysis: whole, or averaged over `average` seconds' blocks, and
-/// never more rows than the analysis takes ([`MAX_ROWS`]), so that a recording too long for it
-/// is refused while it is read rather than after it filled the memory.
-fn read_for_analysis(path: &Path, average: Option<f64>) -> anyhow::Result<Recording> {
+/// never more rows than `budget` allows (at most [`servosight::discrepancy::MAX_ROWS`], fewer where
+/// the memory free would not hold the analysis), so that a recording too long for it is
+/// refused while it is read rather than after it filled the memory.
+fn read_for_analysis(
+    path: &Path,
+    average: Option<f64>,
+    budget: RowBudget,
+) -> anyhow::Result<Recording> {
     let reader = RecordingReader::open(path)?;
     let read = match average {
-        Some(block_s) => reader.read_averaged(block_s, MAX_ROWS),
-        None => reader.read_at_most(MAX_ROWS),
+        Some(block_s) => reader.read_averaged(block_s, budget.rows),
+        None => reader.read_at_most(budget.rows),
     };
+    let reason = budget.reason();
     read.map_err(|e| match e {
         RecordingError::TooManyRows { block_s: None, .. } => anyhow::anyhow!(
-            "{e}: the analysis takes at most {MAX_ROWS} rows of each recording; average them \
-             over blocks of time as they are read with --average SECONDS (--average 1 makes \
-             one row a second of a 1 kHz recording)"
+            "{e}: {reason}; average them over blocks of time as they are read with --average \
+             SECONDS (--average 1 makes one row a second of a 1 kHz recording)"
         ),
         RecordingError::TooManyRows {
             block_s: Some(_), ..
-        } => anyhow::anyhow!(
-            "{e}: the analysis takes at most {MAX_ROWS} rows of each recording; average them \
-             over longer blocks"
-        ),
+        } => anyhow::anyhow!("{e}: {reason}; average them over longer blocks"),
         other => other.into(),
     })
 }
@@ -121,9 +124,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // The two files are read side by side: on a long recording reading is a quarter of the
     // command's time.
+    let budget = RowBudget::now();
     let (sim, real) = std::thread::scope(|scope| {
-        let sim = scope.spawn(|| read_for_analysis(&args.sim, args.average));
-        let real = read_for_analysis(&args.real, args.average);
+        let sim = scope.spawn(|| read_for_analysis(&args.sim, args.average, budget));
+        let real = read_for_analysis(&args.real, args.average, budget);
         (join_or_resume(sim), real)
     });
     let sim = sim.context("cannot read the simulation")?;

@@ -157,12 +157,12 @@ impl<R: Read> Read for CountingReader<R> {
 
 /// The most rows a job reads of a recording, and what the message that refuses more tells
 /// the user to do.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct RowLimit {
     /// The most rows read.
     pub rows: usize,
-    /// What to do with a longer file.
-    pub advice: &'static str,
+    /// Why no more, and what to do with a longer file.
+    pub advice: String,
 }
 
 /// Reads a recording file on a job's thread, whole or (given `average_s`) averaged over blocks
@@ -175,7 +175,7 @@ pub fn read_with_progress<T>(
     context: &JobContext<T>,
     stage: &str,
     span: std::ops::Range<f32>,
-    limit: Option<RowLimit>,
+    limit: Option<&RowLimit>,
     average_s: Option<f64>,
 ) -> Result<Recording, JobStop> {
     let file = std::fs::File::open(path)
@@ -208,7 +208,7 @@ pub fn read_with_progress<T>(
         }
         Err(RecordingError::Stopped { .. }) => Err(JobStop::Cancelled),
         Err(e @ RecordingError::TooManyRows { .. }) => {
-            let advice = limit.map_or("", |l| l.advice);
+            let advice = limit.map_or("", |l| &l.advice);
             Err(JobStop::Failed(format!("{e}; {advice}")))
         }
         Err(e) => Err(JobStop::Failed(e.to_string())),

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use super::history::{History, HistoryConfig};
 use super::jobs::{JobContext, JobStop, RowLimit, read_with_progress};
 use crate::discrepancy::{
-    DiscrepancyError, DiscrepancyReport, MAX_ROWS, Options, analyse_observed,
+    DiscrepancyError, DiscrepancyReport, Options, RowBudget, analyse_observed,
 };
 use crate::signal::RecordingReader;
 use crate::signal::channel::TIME;
@@ -133,24 +133,24 @@ pub fn run_discrepancy(
     context.progress("reading the simulation", Some(0.0));
     // Never more rows than the analysis takes: a recording too long for it is refused while
     // it is read, before it fills the memory the HMI shares with the live machine's history.
+    // Fewer where the memory free now would not hold the analysis beside the live machine.
+    let budget = RowBudget::now();
     let advice = if request.average_s.is_some() {
-        "the analysis takes at most that many rows of each recording; average them over longer \
-         blocks of time (Average over)"
+        "average them over longer blocks of time (Average over)"
     } else {
-        "the analysis takes at most that many rows of each recording; read them averaged over \
-         blocks of a few seconds (Average over), which a temperature that moves over minutes \
-         does not notice"
+        "read them averaged over blocks of a few seconds (Average over), which a temperature \
+         that moves over minutes does not notice"
     };
-    let limit = Some(RowLimit {
-        rows: MAX_ROWS,
-        advice,
-    });
+    let limit = RowLimit {
+        rows: budget.rows,
+        advice: format!("{}; {advice}", budget.reason()),
+    };
     let sim = read_with_progress(
         &request.sim,
         context,
         "reading the simulation",
         0.0..0.2,
-        limit,
+        Some(&limit),
         request.average_s,
     )?;
     context.progress("reading the real recording", Some(0.2));
@@ -159,7 +159,7 @@ pub fn run_discrepancy(
         context,
         "reading the real recording",
         0.2..0.4,
-        limit,
+        Some(&limit),
         request.average_s,
     )?;
     let observer = |fraction: f32, stage: &str| {
