@@ -15,8 +15,9 @@ use super::MAX_ROWS;
 const PEAK_BASE_BYTES: u64 = 250_000_000;
 /// Memory the analysis takes at its peak per row of each recording, bytes.
 const PEAK_BYTES_PER_ROW: u64 = 2_200;
-/// Fewest rows a budget allows, whatever the memory: 5.5 h at 1 Hz, about 0.3 GB at the
-/// peak. A machine with less free than that is refused nothing it could not have refused.
+/// Fewest rows a budget allows, whatever the memory (5.5 h at 1 Hz, about 0.3 GB at the peak):
+/// with less than about 0.6 GB free the rule would refuse every recording, even the short ones
+/// whose analysis takes little more than its base.
 const MIN_ROWS: usize = 20_000;
 /// The environment variable that states the free memory in MB instead of the system: for a
 /// machine whose limit the system does not report, and for tests, which cannot change the
@@ -94,10 +95,15 @@ impl RowBudget {
 /// (`MemAvailable` of `/proc/meminfo`), or less where this process's control group is
 /// limited to less (cgroup v2 `memory.max` − `memory.current`, or v1 `limit_in_bytes` −
 /// `usage_in_bytes`: a container sees the host's memory in `/proc/meminfo`).
-/// [`FREE_MEMORY_VARIABLE`] overrides both; `None` where nothing tells (not Linux).
+/// [`FREE_MEMORY_VARIABLE`], a number of MB, overrides both (a value that is not one is
+/// ignored, so a mistyped override cannot lift the limit); `None` where nothing tells (not
+/// Linux).
 pub fn free_memory_bytes() -> Option<u64> {
-    if let Ok(text) = std::env::var(FREE_MEMORY_VARIABLE) {
-        return text.trim().parse::<f64>().ok().map(|mb| (mb * 1e6) as u64);
+    if let Some(stated) = std::env::var(FREE_MEMORY_VARIABLE)
+        .ok()
+        .and_then(|text| stated_bytes(&text))
+    {
+        return Some(stated);
     }
     let read = |path: &str| std::fs::read_to_string(Path::new(path)).ok();
     let system = read("/proc/meminfo").and_then(|text| mem_available(&text));
@@ -114,6 +120,12 @@ pub fn free_memory_bytes() -> Option<u64> {
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),
     }
+}
+
+/// The bytes a [`FREE_MEMORY_VARIABLE`] value states: a non-negative number of MB, or `None`.
+fn stated_bytes(text: &str) -> Option<u64> {
+    let mb = text.trim().parse::<f64>().ok()?;
+    (mb.is_finite() && mb >= 0.0).then_some((mb * 1e6) as u64)
 }
 
 /// `MemAvailable` of a `/proc/meminfo` text, bytes.
@@ -181,5 +193,10 @@ mod tests {
             Some(4_113_666_048)
         );
         assert_eq!(group_room("1000\n", "2000\n"), Some(0));
+        assert_eq!(stated_bytes(" 600 "), Some(600_000_000));
+        assert_eq!(stated_bytes("1.5"), Some(1_500_000));
+        for mistyped in ["lots", "", "-5", "inf", "NaN", "600MB"] {
+            assert_eq!(stated_bytes(mistyped), None, "{mistyped}");
+        }
     }
 }

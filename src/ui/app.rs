@@ -133,6 +133,7 @@ pub struct HmiApp {
     discrepancy_job: Option<Job<DiscrepancyOutcome>>,
     /// Drawing the sim-vs-real analysis into a PNG.
     discrepancy_png_job: Option<Job<PngOutcome>>,
+    /// Saving the sim-vs-real analysis's report.
     discrepancy_report_job: Option<Job<SavedDiscrepancyReport>>,
     columns_job: Option<Job<SharedColumns>>,
     /// The (simulation, real) paths whose shared columns were last asked for.
