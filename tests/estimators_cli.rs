@@ -315,6 +315,59 @@ fn estimate_refuses_an_uncalibrated_profile_and_missing_columns() {
     assert!(stderr(&run).contains("broken.toml"), "{}", stderr(&run));
 }
 
+/// A recording is estimated row by row as it is read, but a bad row anywhere fails the
+/// command, naming its line, before any estimates file is begun: no half-written output that
+/// looks like a short recording's estimates.
+#[test]
+fn estimate_stops_at_a_bad_row_before_writing_any_estimates() {
+    let dir = tempfile::tempdir().unwrap();
+    let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+    let rec = simulate(
+        dir.path(),
+        "r.csv",
+        &["--scenario", "production", "--hours", "0.5", "--seed", "4"],
+    );
+    let text = std::fs::read_to_string(&rec).unwrap();
+    // Time goes backwards on the 1000th data row.
+    let header = text.lines().position(|l| l.starts_with("time_s")).unwrap();
+    let bad_line = header + 1 + 1000;
+    let broken: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i + 1 == bad_line {
+                let rest = l.split_once(',').unwrap().1;
+                format!("1.5,{rest}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    let broken_path = dir.path().join("broken.csv");
+    std::fs::write(&broken_path, broken.join("\n") + "\n").unwrap();
+    let out = dir.path().join("est.csv");
+    let run = servosight(&[
+        "estimate",
+        "--profile",
+        arg(&profile),
+        "--recording",
+        arg(&broken_path),
+        "-o",
+        arg(&out),
+    ]);
+    assert!(!run.status.success());
+    let err = stderr(&run);
+    assert!(
+        err.contains("cannot read recording")
+            && err.contains(&format!("broken.csv: line {bad_line}")),
+        "{err}"
+    );
+    assert!(
+        !out.exists(),
+        "no estimates file for a recording that did not read"
+    );
+}
+
 /// The preload diagnosis tells preload loss from wear friction on twin runs where each was
 /// injected, and a healthy machine from both (issue 4's proof).
 #[test]

@@ -5,11 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use servosight::estimators::abnormality::{AbnormalityState, judge};
-use servosight::estimators::accuracy::{
-    AccuracyRow, EstimateSeries, accuracy, run as run_estimators,
-};
+use servosight::estimators::accuracy::{AccuracyRow, StreamError, StreamedRun, run_streaming};
 use servosight::profile::MachineProfile;
-use servosight::signal::{Recording, read_recording, write_recording};
+use servosight::signal::{RecordingReader, RecordingWriter, Schema};
 
 /// Arguments of `servosight estimate`.
 #[derive(Debug, clap::Args)]
@@ -52,52 +50,67 @@ struct AbnormalityRow {
     reason: String,
 }
 
-/// Writes the estimates as a recording. The format has no empty cells, so an estimate that is
-/// not known in every row (the abnormality score before enough steady running) is written as
-/// 0 where unknown, next to a `<column>_valid` column that is 1 where it is known.
-fn write_estimates(
-    path: &std::path::Path,
-    profile_path: &std::path::Path,
-    recording: &Recording,
-    series: &EstimateSeries,
-) -> anyhow::Result<()> {
-    let gappy: Vec<bool> = series
-        .values
-        .iter()
-        .map(|v| v.iter().any(|x| !x.is_finite()))
-        .collect();
+/// The columns of the estimates file: time, then each estimate, followed by its
+/// `<column>_valid` where it was unknown in some row. The format has no empty cells, so such
+/// an estimate (the abnormality score before enough steady running) is written as 0 where
+/// unknown, and its valid column is 1 where it is known.
+fn estimate_columns(run: &StreamedRun) -> Vec<String> {
     let mut names = vec!["time_s".to_string()];
-    for (output, &gappy) in series.outputs.iter().zip(&gappy) {
+    for (output, &gappy) in run.outputs.iter().zip(&run.unknown_somewhere) {
         names.push(output.column.clone());
         if gappy {
             names.push(format!("{}_valid", output.column));
         }
     }
-    let mut out = Recording::new(path.display().to_string(), names)?;
-    out.set_metadata("estimated_from", recording.source());
-    out.set_metadata("profile", &profile_path.display().to_string());
-    let mut row = Vec::with_capacity(2 * series.outputs.len() + 1);
-    for i in 0..recording.len() {
+    names
+}
+
+/// Runs the pipeline over the recording again and writes the estimates row by row as they
+/// are made: the first pass (`first`) said which estimates were unknown somewhere, which
+/// the header must name before the first row.
+fn write_estimates(
+    path: &std::path::Path,
+    args: &Args,
+    profile: &MachineProfile,
+    first: &StreamedRun,
+) -> anyhow::Result<()> {
+    let schema = Schema::new(estimate_columns(first), &path.display().to_string())?;
+    let metadata = [
+        (
+            "estimated_from".to_string(),
+            args.recording.display().to_string(),
+        ),
+        ("profile".to_string(), args.profile.display().to_string()),
+    ];
+    let mut writer = RecordingWriter::create(path, &metadata, &schema)?;
+    let mut row = Vec::with_capacity(schema.len());
+    let reader = RecordingReader::open(&args.recording).context("cannot read recording")?;
+    let gappy = &first.unknown_somewhere;
+    run_streaming(profile, reader, &mut |time, values| {
         row.clear();
-        row.push(recording.time()[i]);
-        for (values, &gappy) in series.values.iter().zip(&gappy) {
-            let v = values[i];
+        row.push(time);
+        for (&v, &gappy) in values.iter().zip(gappy) {
             row.push(if v.is_finite() { v } else { 0.0 });
             if gappy {
                 row.push(if v.is_finite() { 1.0 } else { 0.0 });
             }
         }
-        out.push_row(&row)?;
-    }
-    write_recording(path, &out)?;
+        writer.write_row(&row)
+    })?;
+    writer.finish()?;
     Ok(())
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = MachineProfile::load(&args.profile)?;
-    let recording = read_recording(&args.recording).context("cannot read recording")?;
-    let series = run_estimators(&profile, &recording)?;
-    let rows = accuracy(&series, &recording);
+    // Row by row, never the whole recording in memory (hours of 1 kHz servo data are
+    // gigabytes); the estimates file, if asked for, in a second pass.
+    let reader = RecordingReader::open(&args.recording).context("cannot read recording")?;
+    let series = run_streaming(&profile, reader, &mut |_, _| Ok(())).map_err(|e| match e {
+        StreamError::Recording(e) => anyhow::Error::new(e).context("cannot read recording"),
+        other => other.into(),
+    })?;
+    let rows = series.accuracy.clone();
     let finite = |v: f64| v.is_finite().then_some(v);
     let abnormality: Vec<AbnormalityRow> = series
         .abnormality
@@ -121,12 +134,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<_>>()?;
     if let Some(path) = &args.output {
-        write_estimates(path, &args.profile, &recording, &series)?;
+        write_estimates(path, &args, &profile, &series)?;
     }
     if rows.is_empty() {
         println!(
             "{} rows estimated; the recording has no reference columns to score against",
-            recording.len()
+            series.rows
         );
     } else {
         println!(
@@ -168,7 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::servosight_cli::write_json(
             path,
             &Report {
-                rows: recording.len(),
+                rows: series.rows,
                 accuracy: rows,
                 abnormality,
                 notes: series.notes.clone(),
