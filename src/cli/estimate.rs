@@ -67,7 +67,9 @@ fn estimate_columns(run: &StreamedRun) -> Vec<String> {
 
 /// Runs the pipeline over the recording again and writes the estimates row by row as they
 /// are made: the first pass (`first`) said which estimates were unknown somewhere, which
-/// the header must name before the first row.
+/// the header must name before the first row. Only the rows the first pass read are written
+/// (a recording still being recorded grows between the passes), and an estimate unknown
+/// where the first pass knew it stops the write rather than being written as a silent zero.
 fn write_estimates(
     path: &std::path::Path,
     args: &Args,
@@ -86,7 +88,26 @@ fn write_estimates(
     let mut row = Vec::with_capacity(schema.len());
     let reader = RecordingReader::open(&args.recording).context("cannot read recording")?;
     let gappy = &first.unknown_somewhere;
+    let mut written = 0;
     run_streaming(profile, reader, &mut |time, values| {
+        if written == first.rows {
+            return Ok(());
+        }
+        written += 1;
+        if let Some(output) = values
+            .iter()
+            .zip(gappy)
+            .position(|(v, &gappy)| !v.is_finite() && !gappy)
+        {
+            return Err(servosight::signal::RecordingError::Io {
+                source_name: args.recording.display().to_string(),
+                error: std::io::Error::other(format!(
+                    "the recording changed while it was estimated: `{}` is unknown at {time} s \
+                     on the second pass, known on the first",
+                    first.outputs[output].column
+                )),
+            });
+        }
         row.clear();
         row.push(time);
         for (&v, &gappy) in values.iter().zip(gappy) {
@@ -189,4 +210,48 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use servosight::signal::{read_recording, write_recording};
+    use servosight::sim::{ScenarioKind, TwinConfig, simulate};
+
+    /// The second pass writes only the rows the first one read, so a recording that grew
+    /// between them (still being recorded) gets estimates for what was scored; an estimate
+    /// unknown where the first pass knew it stops the write instead of becoming a silent 0.
+    #[test]
+    fn the_estimates_file_holds_the_first_passs_rows_and_no_silent_zero() {
+        let dir = tempfile::tempdir().unwrap();
+        let profile_path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+        let profile = MachineProfile::load(&profile_path).unwrap();
+        let recording = dir.path().join("r.csv");
+        let short = simulate(TwinConfig::new(ScenarioKind::Production, Some(0.1), 3)).unwrap();
+        write_recording(&recording, &short).unwrap();
+        let reader = RecordingReader::open(&recording).unwrap();
+        let first = run_streaming(&profile, reader, &mut |_, _| Ok(())).unwrap();
+        // The recording grows before the second pass.
+        let long = simulate(TwinConfig::new(ScenarioKind::Production, Some(0.2), 3)).unwrap();
+        write_recording(&recording, &long).unwrap();
+        let output = dir.path().join("est.csv");
+        let args = Args {
+            profile: profile_path,
+            recording: recording.clone(),
+            output: Some(output.clone()),
+            json: None,
+        };
+        write_estimates(&output, &args, &profile, &first).unwrap();
+        assert!(long.len() > first.rows);
+        assert_eq!(read_recording(&output).unwrap().len(), first.rows);
+
+        let mut sure = first.clone();
+        sure.unknown_somewhere.iter_mut().for_each(|u| *u = false);
+        let error = write_estimates(&output, &args, &profile, &sure).unwrap_err();
+        assert!(
+            format!("{error:#}").contains("the recording changed while it was estimated"),
+            "{error:#}"
+        );
+    }
 }
