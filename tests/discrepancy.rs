@@ -916,47 +916,46 @@ fn the_command_reports_bad_input_in_one_line() {
     }
 }
 
+/// Writes `rows` rows of a spindle stator warming by a kelvin (τ 10 min), one every `step_s`
+/// seconds, with `wobble` K of a slow sine on top (the "real" one's mismatch).
+pub fn warming_stator_csv(path: &std::path::Path, rows: usize, step_s: f64, wobble: f64) {
+    use std::fmt::Write as _;
+    let mut text = String::from("time_s,S.stator_temp_C\n");
+    for i in 0..rows {
+        let t = i as f64 * step_s;
+        let stator = 20.0 + (1.0 - (-t / 600.0).exp()) + wobble * (t / 97.0).sin();
+        writeln!(text, "{t},{stator}").unwrap();
+    }
+    std::fs::write(path, &text).unwrap();
+}
+
+/// `servosight discrepancy` of two stator files with `extra` arguments and the free memory
+/// stated as `free_mb` (a test cannot take memory from the machine it runs on).
+fn stator_discrepancy(
+    sim: &std::path::Path,
+    real: &std::path::Path,
+    free_mb: &str,
+    extra: &[&str],
+) -> std::process::Output {
+    use servosight::discrepancy::budget::FREE_MEMORY_VARIABLE;
+    let env = [(FREE_MEMORY_VARIABLE, free_mb)];
+    discrepancy_command(sim, real, "S.stator_temp_C", extra, &env)
+}
+
 /// A recording longer than the analysis takes is refused while it is read, in one line that
 /// names the file and says how to read it averaged; averaged over blocks of time as it is
 /// read, the same file is analysed and the command says what it made of it. The library
 /// refuses such a recording too, whoever read it.
 #[test]
 fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
-    use servosight::discrepancy::budget::FREE_MEMORY_VARIABLE;
     use servosight::discrepancy::{DiscrepancyError, MAX_ROWS};
-    use std::fmt::Write as _;
     let dir = tempfile::tempdir().unwrap();
     let (long, real) = (dir.path().join("long.csv"), dir.path().join("real.csv"));
-    // One row past the limit at 1 kHz: 2,000 s of a stator warming by a kelvin, and the real
-    // one at 1 Hz, a tenth of a kelvin off.
-    let stator = |t: f64| 20.0 + (1.0 - (-t / 600.0).exp());
-    let mut text = String::from("time_s,S.stator_temp_C\n");
-    for i in 0..=MAX_ROWS {
-        let t = i as f64 / 1000.0;
-        writeln!(text, "{t},{}", stator(t)).unwrap();
-    }
-    std::fs::write(&long, &text).unwrap();
-    let mut text = String::from("time_s,S.stator_temp_C\n");
-    for i in 0..=MAX_ROWS / 1000 {
-        let t = i as f64;
-        let wobble = 0.1 * (t / 97.0).sin();
-        writeln!(text, "{t},{}", stator(t) + wobble).unwrap();
-    }
-    std::fs::write(&real, &text).unwrap();
-    let run = |extra: &[&str]| {
-        let mut args = vec![
-            "discrepancy",
-            "--sim",
-            arg(&long),
-            "--real",
-            arg(&real),
-            "--target",
-            "S.stator_temp_C",
-        ];
-        args.extend(extra);
-        // Free memory stated, so that the limit is the fixed one on any machine.
-        servosight_with_env(&args, &[(FREE_MEMORY_VARIABLE, "1000000")])
-    };
+    // One row past the limit at 1 kHz, and the real one at 1 Hz, a tenth of a kelvin off.
+    warming_stator_csv(&long, MAX_ROWS + 1, 0.001, 0.0);
+    warming_stator_csv(&real, MAX_ROWS / 1000 + 1, 1.0, 0.1);
+    // Free memory stated, so that the limit is the fixed one on any machine.
+    let run = |extra: &[&str]| stator_discrepancy(&long, &real, "1000000", extra);
     let refused = run(&[]);
     assert!(!refused.status.success());
     let err = stderr(&refused);
@@ -1026,33 +1025,12 @@ fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
 /// through the environment: a test cannot take memory from the machine it runs on.)
 #[test]
 fn with_little_memory_free_a_shorter_recording_is_refused_or_read_averaged() {
-    use servosight::discrepancy::budget::FREE_MEMORY_VARIABLE;
-    use std::fmt::Write as _;
     let dir = tempfile::tempdir().unwrap();
     let (sim, real) = (dir.path().join("sim.csv"), dir.path().join("real.csv"));
-    // 30,001 rows at 1 Hz: a stator warming by a kelvin, the real one a tenth off.
-    let stator = |t: f64| 20.0 + (1.0 - (-t / 600.0).exp());
-    for (path, wobble) in [(&sim, 0.0), (&real, 0.1)] {
-        let mut text = String::from("time_s,S.stator_temp_C\n");
-        for i in 0..=30_000 {
-            let t = i as f64;
-            writeln!(text, "{t},{}", stator(t) + wobble * (t / 97.0).sin()).unwrap();
-        }
-        std::fs::write(path, &text).unwrap();
-    }
-    let run = |extra: &[&str]| {
-        let mut args = vec![
-            "discrepancy",
-            "--sim",
-            arg(&sim),
-            "--real",
-            arg(&real),
-            "--target",
-            "S.stator_temp_C",
-        ];
-        args.extend(extra);
-        servosight_with_env(&args, &[(FREE_MEMORY_VARIABLE, "600")])
-    };
+    // 30,001 rows at 1 Hz, the real one a tenth of a kelvin off.
+    warming_stator_csv(&sim, 30_001, 1.0, 0.0);
+    warming_stator_csv(&real, 30_001, 1.0, 0.1);
+    let run = |extra: &[&str]| stator_discrepancy(&sim, &real, "600", extra);
     let refused = run(&[]);
     assert!(!refused.status.success());
     let err = stderr(&refused);
@@ -1439,13 +1417,15 @@ fn simulate_to(path: &std::path::Path, hours: &str, seed: &str, extra: &[&str]) 
     assert!(run.status.success(), "{}", stderr(&run));
 }
 
-/// Runs `servosight discrepancy` with `extra` arguments and returns its JSON report.
-pub fn discrepancy_json(
+/// Runs `servosight discrepancy` on `sim` and `real` for `target` with `extra` arguments and
+/// the environment variables `env`.
+pub fn discrepancy_command(
     sim: &std::path::Path,
     real: &std::path::Path,
     target: &str,
     extra: &[&str],
-) -> serde_json::Value {
+    env: &[(&str, &str)],
+) -> std::process::Output {
     let mut args = vec![
         "discrepancy",
         "--sim",
@@ -1454,11 +1434,20 @@ pub fn discrepancy_json(
         arg(real),
         "--target",
         target,
-        "--json",
-        "-",
     ];
     args.extend(extra);
-    let run = servosight(&args);
+    servosight_with_env(&args, env)
+}
+
+/// Runs `servosight discrepancy` with `extra` arguments and returns its JSON report.
+pub fn discrepancy_json(
+    sim: &std::path::Path,
+    real: &std::path::Path,
+    target: &str,
+    extra: &[&str],
+) -> serde_json::Value {
+    let extra: Vec<&str> = extra.iter().copied().chain(["--json", "-"]).collect();
+    let run = discrepancy_command(sim, real, target, &extra, &[]);
     assert!(run.status.success(), "{}", stderr(&run));
     serde_json::from_str(&stdout(&run)).expect("the JSON report")
 }

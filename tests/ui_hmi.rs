@@ -1083,25 +1083,13 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
 fn the_discrepancy_job_refuses_a_recording_too_long_or_reads_it_averaged() {
     use servosight::ui::jobs::{JobContext, JobMessage, JobStop};
     use servosight::ui::sim_vs_real::{DiscrepancyRequest, run_discrepancy};
-    use std::fmt::Write as _;
     use std::sync::{Arc, atomic::AtomicBool};
     let dir = tempfile::tempdir().expect("temp dir");
     let limit = servosight::discrepancy::MAX_ROWS;
     let (long, real) = (dir.path().join("long.csv"), dir.path().join("real.csv"));
     // One row past the limit at 1 kHz, and the real stator at 1 Hz, a tenth of a kelvin off.
-    let stator = |t: f64| 20.0 + (1.0 - (-t / 600.0).exp());
-    let mut text = String::from("time_s,S.stator_temp_C\n");
-    for i in 0..=limit {
-        let t = i as f64 / 1000.0;
-        writeln!(text, "{t},{}", stator(t)).expect("text");
-    }
-    std::fs::write(&long, &text).expect("written");
-    let mut text = String::from("time_s,S.stator_temp_C\n");
-    for i in 0..=limit / 1000 {
-        let t = i as f64;
-        writeln!(text, "{t},{}", stator(t) + 0.1 * (t / 97.0).sin()).expect("text");
-    }
-    std::fs::write(&real, &text).expect("written");
+    crate::discrepancy::warming_stator_csv(&long, limit + 1, 0.001, 0.0);
+    crate::discrepancy::warming_stator_csv(&real, limit / 1000 + 1, 1.0, 0.1);
     let (tx, rx) = std::sync::mpsc::sync_channel(1 << 16);
     let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
     let request = |average_s| DiscrepancyRequest {
