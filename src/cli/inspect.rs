@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use servosight::signal::{Channel, Recording, read_recording};
+use servosight::signal::{Channel, Recording, RecordingError, RecordingReader};
 
 /// Arguments of `servosight inspect`.
 #[derive(Debug, clap::Args)]
@@ -52,11 +52,10 @@ struct Gap {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (recording, cut_short) = read_allowing_a_cut_last_line(&args.file)?;
+    let (mut summary, cut_short) = summarise_allowing_a_cut_last_line(&args.file, args.gap_factor)?;
     if let Some(note) = &cut_short {
         eprintln!("warning: {note}");
     }
-    let mut summary = summarise(&recording, args.gap_factor);
     summary.last_line_cut_short = cut_short.is_some();
     match &args.json {
         Some(path) => crate::servosight_cli::write_json(path, &summary)?,
@@ -65,58 +64,103 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn summarise(recording: &Recording, gap_factor: f64) -> Summary {
-    let column_summaries = recording
-        .names()
-        .iter()
-        .enumerate()
-        .map(|(i, name)| {
-            let values = recording.column_at(i);
-            let (min, max, sum) = values.iter().fold(
-                (f64::INFINITY, f64::NEG_INFINITY, 0.0),
-                |(lo, hi, s), &v| (lo.min(v), hi.max(v), s + v),
-            );
-            let n = values.len().max(1) as f64;
-            ColumnSummary {
+/// A summary built row by row: each column's least, greatest and sum, and the time column
+/// alone (the median step and the gaps need every step), so a recording is summarised
+/// holding 8 bytes a row instead of 8 bytes a value (a 46-column recording: a 46th).
+struct SummaryBuilder {
+    names: Vec<String>,
+    /// Per column: least, greatest, sum.
+    columns: Vec<(f64, f64, f64)>,
+    time: Recording,
+}
+
+impl SummaryBuilder {
+    fn new(source: &str, names: &[String]) -> anyhow::Result<SummaryBuilder> {
+        Ok(SummaryBuilder {
+            names: names.to_vec(),
+            columns: vec![(f64::INFINITY, f64::NEG_INFINITY, 0.0); names.len()],
+            time: Recording::new(source, vec![servosight::signal::channel::TIME.to_string()])?,
+        })
+    }
+
+    fn push(&mut self, row: &[f64]) -> anyhow::Result<()> {
+        for ((lo, hi, sum), &v) in self.columns.iter_mut().zip(row) {
+            (*lo, *hi, *sum) = (lo.min(v), hi.max(v), *sum + v);
+        }
+        self.time.push_row(&row[..1])?;
+        Ok(())
+    }
+
+    fn finish(self, metadata: Vec<(String, String)>, gap_factor: f64) -> Summary {
+        let rows = self.time.len();
+        let column_summaries = self
+            .names
+            .iter()
+            .zip(&self.columns)
+            .map(|(name, &(min, max, sum))| ColumnSummary {
                 name: name.clone(),
                 unit: Channel::unit_of(name),
                 kind: kind_of(&Channel::parse(name)),
-                min: if values.is_empty() { 0.0 } else { min },
-                max: if values.is_empty() { 0.0 } else { max },
-                mean: sum / n,
-            }
-        })
-        .collect();
-    let time = recording.time();
-    Summary {
-        file: recording.source().to_string(),
-        rows: recording.len(),
-        columns: recording.names().len(),
-        duration_s: recording.duration_s(),
-        sample_rate_hz: recording.sample_rate_hz(),
-        metadata: recording.metadata().to_vec(),
-        gaps: recording
-            .gaps(gap_factor)
-            .into_iter()
-            .map(|(i, length_s)| Gap {
-                after_s: time[i],
-                length_s,
+                min: if rows == 0 { 0.0 } else { min },
+                max: if rows == 0 { 0.0 } else { max },
+                mean: sum / rows.max(1) as f64,
             })
-            .collect(),
-        column_summaries,
-        last_line_cut_short: false,
+            .collect();
+        let time = self.time.time();
+        Summary {
+            file: self.time.source().to_string(),
+            rows,
+            columns: self.names.len(),
+            duration_s: self.time.duration_s(),
+            sample_rate_hz: self.time.sample_rate_hz(),
+            metadata,
+            gaps: self
+                .time
+                .gaps(gap_factor)
+                .into_iter()
+                .map(|(i, length_s)| Gap {
+                    after_s: time[i],
+                    length_s,
+                })
+                .collect(),
+            column_summaries,
+            last_line_cut_short: false,
+        }
     }
 }
 
-/// Reads a recording; when the only fault is a last line cut short (a recorder that lost power
-/// mid-write), reads everything before it and says so. Any other fault is an error as usual.
-fn read_allowing_a_cut_last_line(
+/// Summarises a recording as it is read, never holding it whole; when the only fault is a last
+/// line cut short (a recorder that lost power mid-write), summarises everything before it and
+/// says so. Any other fault is an error as usual.
+fn summarise_allowing_a_cut_last_line(
     path: &std::path::Path,
-) -> anyhow::Result<(Recording, Option<servosight::signal::RecordingError>)> {
-    match read_recording(path) {
-        Ok(recording) => Ok((recording, None)),
+    gap_factor: f64,
+) -> anyhow::Result<(Summary, Option<RecordingError>)> {
+    let streamed = (|| -> anyhow::Result<Summary> {
+        let mut reader = RecordingReader::open(path)?;
+        let mut builder =
+            SummaryBuilder::new(&path.display().to_string(), reader.schema().names())?;
+        let mut row = Vec::new();
+        while reader.read_row(&mut row)? {
+            builder.push(&row)?;
+        }
+        Ok(builder.finish(reader.metadata().to_vec(), gap_factor))
+    })();
+    match streamed {
+        Ok(summary) => Ok((summary, None)),
         Err(error) => match servosight::link::recorder::read_possibly_truncated(path) {
-            Ok((recording, Some(cut))) => Ok((recording, Some(cut))),
+            Ok((recording, Some(cut))) => {
+                let mut builder = SummaryBuilder::new(recording.source(), recording.names())?;
+                let mut row = Vec::new();
+                for i in 0..recording.len() {
+                    recording.row_into(i, &mut row);
+                    builder.push(&row)?;
+                }
+                Ok((
+                    builder.finish(recording.metadata().to_vec(), gap_factor),
+                    Some(cut),
+                ))
+            }
             _ => Err(error).context("cannot read recording"),
         },
     }
