@@ -25,6 +25,14 @@ pub fn stderr(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()
 }
 
+/// The one line a command that must fail wrote on stderr (asserting it failed and wrote one).
+pub fn one_line_failure(output: &Output) -> String {
+    assert!(!output.status.success(), "the command succeeded");
+    let err = stderr(output);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    err
+}
+
 /// Standard output as text.
 pub fn stdout(output: &Output) -> String {
     String::from_utf8_lossy(&output.stdout).into_owned()

@@ -14,7 +14,8 @@ use servosight::signal::{AxisId, Quantity, Recording, axis_column, reference_col
 use servosight::sim::{Effect, EffectSet, MachineParams, ScenarioKind, TwinConfig, simulate};
 
 use crate::common::{
-    arg, light_pixels, pixels_near, servosight, servosight_with_env, stderr, stdout,
+    arg, light_pixels, one_line_failure, pixels_near, servosight, servosight_with_env, stderr,
+    stdout,
 };
 
 /// The noise of the real run.
@@ -859,31 +860,11 @@ fn the_command_reports_bad_input_in_one_line() {
     let b = dir.path().join("b.csv");
     std::fs::write(&a, "time_s,S.stator_temp_C\n0,20\n1,20.1\n2,20.2\n").unwrap();
     std::fs::write(&b, "time_s,S.stator_temp_C\n100,20\n101,20.1\n").unwrap();
-    let run = servosight(&[
-        "discrepancy",
-        "--sim",
-        arg(&a),
-        "--real",
-        arg(&b),
-        "--target",
-        "S.stator_temp_C",
-    ]);
-    assert!(!run.status.success());
-    let err = stderr(&run);
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let run = discrepancy_command(&a, &b, "S.stator_temp_C", &[], &[]);
+    let err = one_line_failure(&run);
     assert!(err.contains("do not overlap"), "{err}");
-    let missing = servosight(&[
-        "discrepancy",
-        "--sim",
-        arg(&a),
-        "--real",
-        arg(&a),
-        "--target",
-        "X.torque_Nm",
-    ]);
-    assert!(!missing.status.success());
-    let err = stderr(&missing);
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let missing = discrepancy_command(&a, &a, "X.torque_Nm", &[], &[]);
+    let err = one_line_failure(&missing);
     assert!(
         err.contains("X.torque_Nm") && err.contains("not a column"),
         "{err}"
@@ -896,18 +877,8 @@ fn the_command_reports_bad_input_in_one_line() {
         (&absent, &a, "the simulation"),
         (&a, &absent, "the real recording"),
     ] {
-        let run = servosight(&[
-            "discrepancy",
-            "--sim",
-            arg(sim),
-            "--real",
-            arg(real),
-            "--target",
-            "S.stator_temp_C",
-        ]);
-        assert!(!run.status.success());
-        let err = stderr(&run);
-        assert_eq!(err.lines().count(), 1, "{err}");
+        let run = discrepancy_command(sim, real, "S.stator_temp_C", &[], &[]);
+        let err = one_line_failure(&run);
         assert!(
             err.contains(&format!("cannot read {role}")) && err.contains("absent.csv"),
             "{err}"
@@ -957,9 +928,7 @@ fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
     // Free memory stated, so that the limit is the fixed one on any machine.
     let run = |extra: &[&str]| stator_discrepancy(&long, &real, "1000000", extra);
     let refused = run(&[]);
-    assert!(!refused.status.success());
-    let err = stderr(&refused);
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = one_line_failure(&refused);
     assert!(
         err.contains("cannot read the simulation")
             && err.contains(&format!(
@@ -993,9 +962,7 @@ fn a_recording_too_long_for_the_analysis_is_refused_or_read_averaged() {
     );
     for block in ["0", "-2", "NaN"] {
         let bad = run(&[&format!("--average={block}")]);
-        assert!(!bad.status.success());
-        let err = stderr(&bad);
-        assert_eq!(err.lines().count(), 1, "{err}");
+        let err = one_line_failure(&bad);
         assert!(
             err.contains("--average must be a positive number of seconds"),
             "{err}"
@@ -1032,9 +999,7 @@ fn with_little_memory_free_a_shorter_recording_is_refused_or_read_averaged() {
     warming_stator_csv(&real, 30_001, 1.0, 0.1);
     let run = |extra: &[&str]| stator_discrepancy(&sim, &real, "600", extra);
     let refused = run(&[]);
-    assert!(!refused.status.success());
-    let err = stderr(&refused);
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = one_line_failure(&refused);
     // Half of 600 MB less 250 MB, at 2.2 kB a row.
     assert!(
         err.contains(

@@ -29,9 +29,9 @@ pub struct Args {
 
 /// The JSON report.
 #[derive(Debug, serde::Serialize)]
-struct Report {
+struct Report<'a> {
     rows: usize,
-    accuracy: Vec<AccuracyRow>,
+    accuracy: &'a [AccuracyRow],
     abnormality: Vec<AbnormalityRow>,
     notes: Vec<String>,
 }
@@ -131,7 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         StreamError::Recording(e) => anyhow::Error::new(e).context("cannot read recording"),
         other => other.into(),
     })?;
-    let rows = series.accuracy.clone();
+    let rows = &series.accuracy;
     let finite = |v: f64| v.is_finite().then_some(v);
     let abnormality: Vec<AbnormalityRow> = series
         .abnormality
@@ -167,7 +167,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "{:<24} {:>8} {:>8} {:>10} {:>10} {:>9} {:>10}  reference",
             "estimate", "n", "R²", "RMSE", "max |err|", "ref σ", "R² true"
         );
-        for r in &rows {
+        for r in rows {
             let corrected = r
                 .r2_noise_corrected
                 .map_or_else(|| "—".to_string(), |v| format!("{v:.4}"));
