@@ -110,8 +110,8 @@ pub struct Step {
     /// Admitted as one of two effects that mask each other (see `masked_pair`): the partner
     /// member, which the next step tests.
     pub masked_by: Option<usize>,
-    /// Accepted on what it explains once every correction is refitted with it (see
-    /// [`accepted_after_refit`]): `gain`, `p_value`, `tail_p` and the runners-up's gains are
+    /// Accepted on what it explains once every correction is refitted with it (the selection's
+    /// `accepted_after_refit`): `gain`, `p_value`, `tail_p` and the runners-up's gains are
     /// those of the refitted models.
     pub after_refit: bool,
 }
