@@ -3,7 +3,7 @@
 mod common;
 mod discrepancy;
 mod discrepancy_other_machine;
-mod discrepancy_spindle_winding;
+mod discrepancy_spindle;
 mod estimators_cli;
 mod fit;
 mod link_replay;

@@ -1822,6 +1822,19 @@ fn winding_mismatch_family(
 /// of a front bearing two nodes from the winding at 1.6 × its thermometer's noise.
 const WINDING_LAG_RATIOS: [f64; 4] = [0.0, 2.0, 4.0, 12.0];
 
+/// The friction power the simulation lacks as the drive measures it: the real current's
+/// magnitude beyond the simulated one times the speed, (|I| − |I_sim|) · |n| / 1000.
+fn measured_friction_power(a: &AxisSignals) -> Option<Vec<f64>> {
+    let (real, simulated) = (a.current.as_ref()?, a.sim_current.as_ref()?);
+    Some(
+        real.iter()
+            .zip(simulated)
+            .zip(&a.speed)
+            .map(|((i, j), n)| (i.abs() - j.abs()) * n.abs() / 1000.0)
+            .collect(),
+    )
+}
+
 /// The measured winding temperature minus the simulated one, °C.
 fn winding_mismatch(a: &AxisSignals) -> Option<Vec<f64>> {
     let (real, simulated) = (a.stator.as_ref()?, a.sim_stator.as_ref()?);
@@ -2367,6 +2380,40 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 } else {
                     family
                 });
+            }
+            // The friction the drive measures: on a part of an axis that never reverses (a
+            // spindle: no Coulomb term to tell apart), the current the real motor draws
+            // beyond the simulated one, times the speed, is the friction power the
+            // simulation lacks, and the bearings turn it into heat. On a growth, which has no
+            // temperature of its own for the drag heat above to follow; on a bearing's own
+            // temperature that drag heat follows the bearing already, and this term, offered
+            // there too, was named beside coolant left out in four reports of the independent
+            // check (the cooler bearing's thicker oil), where the coolant's form has the
+            // friction heat among its refinements.
+            if ctx.class == TargetClass::Displacement
+                && !reversing
+                && site == Site::Other
+                && axis_signals.current.is_some()
+                && axis_signals.sim_current.is_some()
+            {
+                out.push(thermal_family(
+                    Physics::LubricantViscosity,
+                    vec![
+                        axis_column(axis, Quantity::Current),
+                        format!("{} (simulated)", axis_column(axis, Quantity::Current)),
+                        speed_name.clone(),
+                    ],
+                    vec!["tau_s", "lag_ratio"],
+                    thermal_grid(&taus, &[]),
+                    Box::new(move |ctx, _| {
+                        ctx.axis(axis)
+                            .and_then(measured_friction_power)
+                            .map_or_else(Vec::new, |p| vec![p])
+                    }),
+                    None,
+                    Some(axis),
+                    Start::Rest,
+                ));
             }
             if axis_signals.position.is_some() {
                 out.push(thermal_family(
@@ -2920,6 +2967,32 @@ pub fn explain(
             p.insert("per_krpm2".into(), g1);
             format!(
                 "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)², through τ = {tau_min:.0} min"
+            )
+        }
+        Kind::Physics(Physics::LubricantViscosity)
+            if family.axis.is_some_and(|a| {
+                family.signals.first() == Some(&axis_column(a, Quantity::Current))
+            }) =>
+        {
+            // The friction the drive measures ([`measured_friction_power`]).
+            let power = ctx
+                .axis_of(family.axis)
+                .and_then(measured_friction_power)
+                .unwrap_or_default();
+            let mean_power = mean(&power);
+            let current = family.signals.first().cloned().unwrap_or_default();
+            let mean_effect = mean(&total);
+            p.insert("gain_per_unit_power".into(), g0);
+            p.insert("mean_extra_friction_power".into(), mean_power);
+            p.insert("mean_effect".into(), mean_effect);
+            let (more, warmer) = if mean_power >= 0.0 {
+                ("more", "more")
+            } else {
+                ("less", "less")
+            };
+            format!(
+                "the {axis_name} bearings' friction is not the simulation's (the lubricant's viscosity at its running temperature): the drive draws {more} current at speed than simulated (`{current}`, {:.3} A·krpm on average), so {warmer} friction heat reaches the {target}: {mean_effect:+.3}{unit} on average, {g0:.3}{unit} per A·krpm through τ = {tau_min:.0} min",
+                mean_power.abs(),
             )
         }
         Kind::Physics(Physics::LubricantViscosity) => {
