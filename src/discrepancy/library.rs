@@ -1697,18 +1697,10 @@ fn winding_coolant_drivers(
             (_, None) => vec![over(&|_| first)],
         };
         if theta[friction] > 0.0 {
-            let (Some(current), Some(simulated)) = (a.current.as_ref(), a.sim_current.as_ref())
-            else {
+            let Some(friction_power) = measured_friction_power(a) else {
                 return vec![];
             };
-            drivers.push(
-                current
-                    .iter()
-                    .zip(simulated)
-                    .zip(&a.speed)
-                    .map(|((i, j), n)| (i.abs() - j.abs()) * n.abs() / 1000.0)
-                    .collect(),
-            );
+            drivers.push(friction_power);
         }
         drivers
     })
@@ -1821,6 +1813,17 @@ fn winding_mismatch_family(
 /// by side with free gains express exactly; ratios of 4 and 12 alone left the held-out error
 /// of a front bearing two nodes from the winding at 1.6 × its thermometer's noise.
 const WINDING_LAG_RATIOS: [f64; 4] = [0.0, 2.0, 4.0, 12.0];
+
+/// The signals of a correction built from the axis's current as measured and as simulated,
+/// and its speed.
+fn current_pair_signals(axis: AxisId) -> Vec<String> {
+    let current = axis_column(axis, Quantity::Current);
+    vec![
+        current.clone(),
+        format!("{current} (simulated)"),
+        axis_column(axis, Quantity::Speed),
+    ]
+}
 
 /// The friction power the simulation lacks as the drive measures it: the real current's
 /// magnitude beyond the simulated one times the speed, (|I| − |I_sim|) · |n| / 1000.
@@ -2225,11 +2228,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                 match friction_current(axis_signals) {
                     Some(f) if f.explained >= FRICTION_STEP_MIN_SHARE => out.push(thermal_family(
                         Physics::CoulombReversal,
-                        vec![
-                            axis_column(axis, Quantity::Current),
-                            format!("{} (simulated)", axis_column(axis, Quantity::Current)),
-                            speed_name.clone(),
-                        ],
+                        current_pair_signals(axis),
                         vec!["tau_s", "lag_ratio"],
                         thermal_grid(&taus, &[]),
                         Box::new(move |ctx, _| {
@@ -2398,11 +2397,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             {
                 out.push(thermal_family(
                     Physics::LubricantViscosity,
-                    vec![
-                        axis_column(axis, Quantity::Current),
-                        format!("{} (simulated)", axis_column(axis, Quantity::Current)),
-                        speed_name.clone(),
-                    ],
+                    current_pair_signals(axis),
                     vec!["tau_s", "lag_ratio"],
                     thermal_grid(&taus, &[]),
                     Box::new(move |ctx, _| {
