@@ -5,8 +5,8 @@
 //! With the copper loss left out of the simulation, the winding runs many kelvin warmer than
 //! simulated, and the bearing and the growth follow it through the housing. The copper-loss
 //! forms rebuilt from the current cannot follow a winding that the coolant cools (the part's
-//! analysis names nothing at 70 σ); the winding's measured mismatch can, and the analysis of
-//! the winding names the physics the part then inherits.
+//! own analysis names nothing); the winding's measured mismatch can, and the analysis of the
+//! winding names the physics the part then inherits.
 //!
 //! With the lubricant's viscosity left out (the simulation keeps the drag of oil at 20 °C), the
 //! real bearings drag less as they warm, draw less current and make less heat: the bearing's
