@@ -1074,6 +1074,19 @@ fn state_dependent(mut family: Family) -> Family {
 /// The drivers of a thermal family, computed from the context.
 type Drivers = Box<dyn Fn(&Context, &[f64]) -> Vec<Vec<f64>> + Send + Sync>;
 
+/// The one driver `driver` computes from `axis`'s signals; none when the axis or a signal it
+/// needs is missing.
+fn axis_driver(
+    axis: AxisId,
+    driver: impl Fn(&AxisSignals) -> Option<Vec<f64>> + Send + Sync + 'static,
+) -> Drivers {
+    Box::new(move |ctx, _| {
+        ctx.axis(axis)
+            .and_then(&driver)
+            .map_or_else(Vec::new, |d| vec![d])
+    })
+}
+
 /// A family whose drivers reach the target through fitted lags.
 #[allow(clippy::too_many_arguments)]
 fn thermal_family(
@@ -1796,11 +1809,7 @@ fn winding_mismatch_family(
         taus.iter()
             .flat_map(|&tau| WINDING_LAG_RATIOS.map(|ratio| vec![tau, ratio]))
             .collect(),
-        Box::new(move |ctx, _| {
-            ctx.axis(axis)
-                .and_then(winding_mismatch)
-                .map_or_else(Vec::new, |m| vec![m])
-        }),
+        axis_driver(axis, winding_mismatch),
         limits,
         Some(axis),
         Start::Rest,
@@ -2231,11 +2240,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         current_pair_signals(axis),
                         vec!["tau_s", "lag_ratio"],
                         thermal_grid(&taus, &[]),
-                        Box::new(move |ctx, _| {
-                            ctx.axis(axis)
-                                .and_then(friction_current)
-                                .map_or_else(Vec::new, |f| vec![f.extra])
-                        }),
+                        axis_driver(axis, |a| friction_current(a).map(|f| f.extra)),
                         temperature.then_some(GainLimit::positive(0)),
                         Some(axis),
                         Start::Rest,
@@ -2400,11 +2405,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                     current_pair_signals(axis),
                     vec!["tau_s", "lag_ratio"],
                     thermal_grid(&taus, &[]),
-                    Box::new(move |ctx, _| {
-                        ctx.axis(axis)
-                            .and_then(measured_friction_power)
-                            .map_or_else(Vec::new, |p| vec![p])
-                    }),
+                    axis_driver(axis, measured_friction_power),
                     None,
                     Some(axis),
                     Start::Rest,
