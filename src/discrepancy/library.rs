@@ -843,6 +843,19 @@ fn direction_of(speed: &[f64]) -> Vec<f64> {
     speed.iter().map(|&v| smooth_sign(v, epsilon)).collect()
 }
 
+/// The fewest rows, and the smallest share of the rows, on which a Stribeck column must hold
+/// at least a tenth of its full excess for its coefficient to mean a friction near standstill.
+const STRIBECK_SUPPORT_ROWS: usize = 30;
+const STRIBECK_SUPPORT_SHARE: f64 = 0.005;
+
+/// Whether a Stribeck column (direction × e^(−|n|/n_s)) is weighed by enough slow moves:
+/// [`STRIBECK_SUPPORT_ROWS`] rows and [`STRIBECK_SUPPORT_SHARE`] of them at ≥ 0.1.
+fn stribeck_supported(stribeck: &[f64]) -> bool {
+    let slow = stribeck.iter().filter(|v| v.abs() >= 0.1).count();
+    slow >= STRIBECK_SUPPORT_ROWS
+        && slow as f64 >= STRIBECK_SUPPORT_SHARE * stribeck.len() as f64
+}
+
 /// Whether an axis runs both ways: at least 1 % of the samples in each direction faster than
 /// 5 % of its top speed (well clear of the speed noise at standstill).
 fn reverses(speed: &[f64]) -> bool {
@@ -2471,11 +2484,17 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         // The extra friction near standstill (Stribeck) that fades with speed.
                         let top = a.speed.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
                         let speed_scale = (share * top).max(1e-9);
-                        let stribeck = coulomb
+                        let stribeck: Vec<f64> = coulomb
                             .iter()
                             .zip(&a.speed)
                             .map(|(c, n)| c * (-n.abs() / speed_scale).exp())
                             .collect();
+                        if !stribeck_supported(&stribeck) {
+                            // Too few slow moves to weigh an excess near standstill: its
+                            // coefficient would be fitted on a handful of rows (or on
+                            // numbers like 1e-40) and read as a breakaway friction of 1e12.
+                            return vec![];
+                        }
                         vec![coulomb, stribeck]
                     }),
                     limits: Vec::new(),
@@ -3203,6 +3222,48 @@ mod tests {
                 .all(|(f, p)| *f <= *p + 1e-12)
         );
         assert!(faster[0].iter().zip(&plain[0]).any(|(f, p)| *f < *p - 1e-3));
+    }
+
+    /// A Stribeck excess is weighed only where the axis moves slowly often enough: on an axis
+    /// that always moves at one speed its column is e^(−45) and its coefficient a 1e12
+    /// "breakaway friction" fitted to nothing.
+    #[test]
+    fn a_stribeck_excess_is_offered_only_with_slow_moves_to_weigh_it() {
+        let names = |columns: &[&str]| columns.iter().map(|c| c.to_string()).collect();
+        let stribeck_members = |slow_every: Option<u32>| {
+            let columns = ["time_s", "X.speed_rpm", "X.torque_Nm"];
+            let mut sim =
+                crate::signal::Recording::new("sim", names(&columns)).expect("valid names");
+            let mut real =
+                crate::signal::Recording::new("real", names(&columns)).expect("valid names");
+            for i in 0..4000_u32 {
+                let t = f64::from(i);
+                let direction = if (i / 20) % 2 == 0 { 1.0 } else { -1.0 };
+                let slow = slow_every.is_some_and(|every| i % every < 3);
+                let speed = direction * if slow { 0.5 } else { 400.0 };
+                let torque = 0.5 * direction + 1e-3 * speed;
+                sim.push_row(&[t, speed, torque]).expect("a row of the schema");
+                real.push_row(&[t, speed, torque + 0.2 * direction])
+                    .expect("a row of the schema");
+            }
+            let aligned = super::super::align::Aligned::new(&sim, &real, "X.torque_Nm")
+                .expect("the pair aligns");
+            let ctx = Context::new(&aligned, "X.torque_Nm");
+            let (families, _) = families(&ctx);
+            let coulomb = families
+                .iter()
+                .find(|f| f.kind == Kind::Physics(Physics::CoulombReversal) && !f.lagged)
+                .expect("the axis reverses");
+            coulomb
+                .grid
+                .iter()
+                .map(|theta| super::super::build(coulomb, &ctx, theta).len())
+                .collect::<Vec<_>>()
+        };
+        // Coulomb alone, then the three Stribeck speeds.
+        assert_eq!(stribeck_members(None), vec![1, 0, 0, 0]);
+        // Three slow rows in every 50 (6 %): each Stribeck speed has its column.
+        assert_eq!(stribeck_members(Some(50)), vec![1, 2, 2, 2]);
     }
 
     /// A limit written for a refinement's members (the held coolant's two cooling terms)
