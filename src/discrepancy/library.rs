@@ -332,6 +332,10 @@ pub struct Context {
     /// the winding has named it ([`Context::with_winding_cause`]): the target may then inherit
     /// the winding's mismatch ([`winding_mismatch_family`]).
     pub winding_cause: Option<Arc<WindingCause>>,
+    /// When the rows are a coarser simulation's instants and most of the real target's
+    /// variation falls between them ([`TooCoarse`]): the simulated target's own time course
+    /// is then not known, and no delay or lag of it can be built.
+    pub too_coarse: Option<TooCoarse>,
     /// The real coolant's own lags, kept once built; shared by the context's copies with
     /// another state, whose coolant is the same.
     coolant_lags: Arc<CoolantLags>,
@@ -382,6 +386,63 @@ impl fmt::Debug for CoolantLags {
         f.debug_struct("CoolantLags")
             .field("kept", &self.kept.len())
             .finish()
+    }
+}
+
+/// Share of a real target's spread that may vary between a coarser simulation's instants
+/// before the simulation is taken not to resolve it: half. The independent check's X torque
+/// reverses every 4–6 s; at a 2.5 s export 0.38–0.40 of its spread lay between the instants
+/// and its 26 s delay was named, at a 10 s export 1.03 did and a delay of 141 s was fitted
+/// to a true 14 s (docs/discrepancy.md). Slow temperatures: 0.01–0.04.
+const TOO_COARSE_SHARE: f64 = 0.5;
+
+/// How many times the real target's sample noise the variation between the instants must
+/// also be, so that a target of little but noise is never called unresolved.
+const TOO_COARSE_NOISE_RATIO: f64 = 3.0;
+
+/// A simulation exported too coarsely to hold its target's time course: most of what the
+/// real target does happens between the simulation's instants. The comparison at those
+/// instants is still exact; what cannot be built is anything that moves or filters the
+/// simulated target itself (a delay, a different heat capacity), which would interpolate
+/// across the very changes it is to shift.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TooCoarse {
+    /// RMS of the real target about its values interpolated from the simulation's instants,
+    /// over its standard deviation.
+    pub share: f64,
+    /// The simulation's step, s.
+    pub sim_step_s: f64,
+    /// The real recording's step, s.
+    pub real_step_s: f64,
+}
+
+impl TooCoarse {
+    /// The share of `fine` (the real target on its own rows) that lies between the compared
+    /// instants (`at_instants`, the real target read there), when it is too large:
+    /// [`TOO_COARSE_SHARE`] of its spread and [`TOO_COARSE_NOISE_RATIO`] × its noise.
+    fn measure(fine: &[f64], at_instants: &[f64], fine_in_instants: &Index) -> Option<f64> {
+        if fine.len() != fine_in_instants.len() || fine.len() < 3 {
+            return None;
+        }
+        let rebuilt = interpolate(at_instants, fine_in_instants);
+        let between: Vec<f64> = fine.iter().zip(&rebuilt).map(|(f, r)| f - r).collect();
+        let between = super::series::rms(&between);
+        let spread = super::series::std_dev(fine);
+        let steps: Vec<f64> = fine.windows(2).map(|w| w[1] - w[0]).collect();
+        let noise = super::series::robust_sigma(&steps) / std::f64::consts::SQRT_2;
+        let share = between / spread;
+        (share.is_finite()
+            && share >= TOO_COARSE_SHARE
+            && between >= TOO_COARSE_NOISE_RATIO * noise)
+            .then_some(share)
+    }
+
+    /// Why a family that rebuilds the simulated target's time course was not tried.
+    fn reason(&self, target: &str) -> String {
+        format!(
+            "the simulation's export every {:.3} s does not hold {target}'s time course: the real one, sampled every {:.3} s, departs from what its values at the simulation's instants interpolate by {:.2} × its own spread (RMS), so the simulated {target} cannot be shifted or lagged",
+            self.sim_step_s, self.real_step_s, self.share
+        )
     }
 }
 
@@ -632,6 +693,14 @@ impl Context {
             let step = fine.step_s.min(context.step_s);
             let (compared_in_real, _) = index_onto(&fine.time, &context.time, step);
             let (real_in_compared, _) = index_onto(&context.time, &fine.time, step);
+            context.too_coarse =
+                TooCoarse::measure(&real.real_target, &aligned.real_target, &real_in_compared).map(
+                    |share| TooCoarse {
+                        share,
+                        sim_step_s: context.step_s,
+                        real_step_s: fine.step_s,
+                    },
+                );
             context.real_rate = Some(Arc::new(RealRate {
                 context: fine,
                 compared_in_real: Arc::new(compared_in_real),
@@ -732,6 +801,7 @@ impl Context {
             },
             real_rate: None,
             winding_cause: None,
+            too_coarse: None,
             coolant_lags: Arc::default(),
         }
     }
@@ -852,8 +922,7 @@ const STRIBECK_SUPPORT_SHARE: f64 = 0.005;
 /// [`STRIBECK_SUPPORT_ROWS`] rows and [`STRIBECK_SUPPORT_SHARE`] of them at ≥ 0.1.
 fn stribeck_supported(stribeck: &[f64]) -> bool {
     let slow = stribeck.iter().filter(|v| v.abs() >= 0.1).count();
-    slow >= STRIBECK_SUPPORT_ROWS
-        && slow as f64 >= STRIBECK_SUPPORT_SHARE * stribeck.len() as f64
+    slow >= STRIBECK_SUPPORT_ROWS && slow as f64 >= STRIBECK_SUPPORT_SHARE * stribeck.len() as f64
 }
 
 /// Whether an axis runs both ways: at least 1 % of the samples in each direction faster than
@@ -1931,8 +2000,27 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         state: false,
         refinements: Vec::new(),
     });
-    out.push(thermal_inertia_family(ctx, simulated.clone(), &taus));
-    out.push(Family {
+    if let Some(coarse) = &ctx.too_coarse {
+        for physics in [Physics::ThermalInertia, Physics::SignalDelay] {
+            untested.push((physics, coarse.reason(&ctx.target)));
+        }
+    } else if thermal {
+        out.push(thermal_inertia_family(ctx, simulated.clone(), &taus));
+    } else {
+        // A lead-lag of a whole torque or current says the drive's effort follows its load
+        // through a heat capacity, which it does not: a part's heat capacity reaches an
+        // effort only through the lubricant's temperature (lubricant viscosity). Offered,
+        // it took the part of a delay that interpolation leaves and was named beside it,
+        // and crowded Coulomb friction out of a pair (docs/discrepancy.md).
+        untested.push((
+            Physics::ThermalInertia,
+            format!(
+                "{} is an effort, which has no heat capacity of its own (a part's heat capacity reaches it through the lubricant's temperature: lubricant_viscosity)",
+                ctx.target
+            ),
+        ));
+    }
+    out.extend(ctx.too_coarse.is_none().then(|| Family {
         kind: Kind::Physics(Physics::SignalDelay),
         signals: vec![simulated.clone()],
         theta_names: vec!["delay_s"],
@@ -1947,7 +2035,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         lagged: false,
         state: false,
         refinements: Vec::new(),
-    });
+    }));
     out.push(Family {
         kind: Kind::Physics(Physics::SensorOffsetDrift),
         signals: vec!["time_s".into()],
@@ -3224,6 +3312,41 @@ mod tests {
         assert!(faster[0].iter().zip(&plain[0]).any(|(f, p)| *f < *p - 1e-3));
     }
 
+    /// A simulation exported every 10 s cannot hold a torque that reverses every 6 s: the
+    /// real torque's values at its instants rebuild nothing between them. A slow temperature,
+    /// or a target of nothing but noise, is held.
+    #[test]
+    fn a_simulation_too_coarse_for_its_target_is_recognised() {
+        let fine_time: Vec<f64> = (0..6000).map(f64::from).collect();
+        let instants: Vec<f64> = (0..600).map(|i| 10.0 * f64::from(i)).collect();
+        let (fine_in_instants, _) = index_onto(&instants, &fine_time, 1.0);
+        let (instants_in_fine, _) = index_onto(&fine_time, &instants, 1.0);
+        let mut rng = <rand::rngs::StdRng as rand::SeedableRng>::seed_from_u64(7);
+        let white: Vec<f64> = (0..6000)
+            .map(|_| rand::Rng::random_range(&mut rng, -0.02..0.02))
+            .collect();
+        let noise = |i: usize| white[i];
+        let share = |fine: &[f64]| {
+            let at_instants = interpolate(fine, &instants_in_fine);
+            TooCoarse::measure(fine, &at_instants, &fine_in_instants)
+        };
+        let reversing: Vec<f64> = fine_time
+            .iter()
+            .enumerate()
+            .map(|(i, t)| if (t / 3.0).floor() % 2.0 == 0.0 { 1.0 } else { -1.0 } + noise(i))
+            .collect();
+        let share_of_reversing = share(&reversing).expect("the reversals fall between instants");
+        assert!(share_of_reversing > 0.9, "share {share_of_reversing}");
+        let warming: Vec<f64> = fine_time
+            .iter()
+            .enumerate()
+            .map(|(i, t)| 20.0 + 5.0 * (1.0 - (-t / 1800.0).exp()) + noise(i))
+            .collect();
+        assert_eq!(share(&warming), None);
+        let only_noise: Vec<f64> = (0..6000).map(noise).collect();
+        assert_eq!(share(&only_noise), None);
+    }
+
     /// A Stribeck excess is weighed only where the axis moves slowly often enough: on an axis
     /// that always moves at one speed its column is e^(−45) and its coefficient a 1e12
     /// "breakaway friction" fitted to nothing.
@@ -3242,7 +3365,8 @@ mod tests {
                 let slow = slow_every.is_some_and(|every| i % every < 3);
                 let speed = direction * if slow { 0.5 } else { 400.0 };
                 let torque = 0.5 * direction + 1e-3 * speed;
-                sim.push_row(&[t, speed, torque]).expect("a row of the schema");
+                sim.push_row(&[t, speed, torque])
+                    .expect("a row of the schema");
                 real.push_row(&[t, speed, torque + 0.2 * direction])
                     .expect("a row of the schema");
             }
