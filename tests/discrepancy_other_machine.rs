@@ -356,8 +356,61 @@ fn a_delay_is_not_fitted_to_a_simulation_exported_too_coarsely_to_hold_it() {
         );
     }
     assert_eq!(report["alignment"]["on_simulation_grid"], true);
-    // Compared at the export's instants, the delay is still seen as a mismatch.
+    // Compared at the export's instants, the delay is still seen as a mismatch; between the
+    // instants nothing says where the simulation is right.
     assert_eq!(report["verdict"], "missing_physics", "{report}");
+    assert_eq!(
+        report["agreement_regions"],
+        serde_json::json!([]),
+        "{report}"
+    );
+}
+
+/// A torque that swings by ±0.3 N·m every ten minutes for no reason the vocabulary knows
+/// leaves a gross mismatch everywhere (the sensor's noise is 0.02 N·m). No span of it is
+/// called right: below a threshold set by what the corrections leave is not near the noise.
+#[test]
+fn no_span_is_called_right_where_what_is_left_is_far_above_the_noise() {
+    let real = feed_axis_csv(6, REAL);
+    let torque = COLUMNS
+        .split(',')
+        .position(|c| c == "X.torque_Nm")
+        .expect("a torque column");
+    let swinging: String = real
+        .lines()
+        .enumerate()
+        .map(|(k, line)| {
+            let mut row: Vec<String> = line.split(',').map(str::to_string).collect();
+            if k > 0 {
+                let t: f64 = row[0].parse().expect("a time");
+                let measured: f64 = row[torque].parse().expect("a torque");
+                let swing = 0.3 * (2.0 * std::f64::consts::PI * t / 600.0).sin();
+                row[torque] = format!("{:.5}", measured + swing);
+            }
+            row.join(",") + "\n"
+        })
+        .collect();
+    let simulated = feed_axis_csv(
+        6,
+        Physics {
+            noisy: false,
+            ..REAL
+        },
+    );
+    let report = compare(&simulated, &swinging, "X.torque_Nm");
+    let floor = &report["noise_floor"];
+    let sample_noise = floor["sample_noise_rms"]
+        .as_f64()
+        .expect("noise_floor.sample_noise_rms");
+    let left = floor["rms"].as_f64().expect("noise_floor.rms");
+    assert!(left > 4.0 * sample_noise, "{floor}");
+    for right in report["agreement_regions"]
+        .as_array()
+        .expect("agreement_regions")
+    {
+        let rms = right["rms_residual"].as_f64().expect("rms_residual");
+        assert!(rms < 4.0 * sample_noise, "called right at {rms}: {right}");
+    }
 }
 
 /// The ball-screw nut is heated by its own friction, in proportion to the speed for a friction

@@ -357,6 +357,11 @@ impl DiscrepancyReport {
             for r in &self.mismatch_regions {
                 let _ = writeln!(s, "  {}", describe(r));
             }
+        } else if self.verdict == Verdict::MissingPhysics && self.agreement_regions.is_empty() {
+            let _ = writeln!(
+                s,
+                "\nWhere the simulation misses: throughout; no span stands out above the rest"
+            );
         }
         if !self.agreement_regions.is_empty() {
             let _ = writeln!(s, "\nWhere the simulation is right:");
