@@ -433,6 +433,27 @@ fn coulomb_friction_left_out_is_named_on_the_nut_it_heats() {
     assert_held_out_within_the_thermometer_noise(&report);
 }
 
+/// A feed screw that never runs faster than 400 rpm: its friction heat per 1000 rpm is also
+/// given at the fastest speed it runs, which is what the nut actually sees.
+#[test]
+fn a_figure_per_1000_rpm_is_also_given_at_the_fastest_speed_the_axis_runs() {
+    let report = coulomb_left_out(12, "ref.X.nut_temp_C");
+    assert_named_first(&report, "coulomb_reversal");
+    let finding = &report["findings"][0];
+    let top = parameter(finding, "top_running_rpm");
+    assert!(
+        (300.0..=400.0).contains(&top),
+        "top running speed {top} rpm"
+    );
+    let per_krpm = parameter(finding, "per_krpm");
+    let at_top = parameter(finding, "at_top_running_speed");
+    assert!((at_top - per_krpm * top / 1000.0).abs() < 1e-9 * per_krpm.abs().max(1.0));
+    assert_explains(
+        finding,
+        &format!("at {top:.0} rpm, the fastest it runs here"),
+    );
+}
+
 /// A simulation that gives the nut one convection coefficient, right for 250 rpm, against a
 /// nut whose convection grows as it travels faster: the real nut runs cooler than simulated
 /// at high feed and warmer at low feed and standstill. Cooling that only grows from still air

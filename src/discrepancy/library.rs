@@ -925,6 +925,10 @@ fn stribeck_supported(stribeck: &[f64]) -> bool {
     slow >= STRIBECK_SUPPORT_ROWS && slow as f64 >= STRIBECK_SUPPORT_SHARE * stribeck.len() as f64
 }
 
+/// The band of top running speeds (in 1000 rpm) within which a figure given at 1000 rpm is
+/// left to speak for itself; outside it the figure is also given at the top running speed.
+const TOP_SPEED_NOTE_BAND: (f64, f64) = (0.8, 1.25);
+
 /// Whether an axis runs both ways: at least 1 % of the samples in each direction faster than
 /// 5 % of its top speed (well clear of the speed noise at standstill).
 fn reverses(speed: &[f64]) -> bool {
@@ -2737,6 +2741,21 @@ pub fn explain(
         }
     }
     let axis_name = family.axis.map(|a| a.as_str()).unwrap_or("");
+    // A figure given at 1000 rpm means little on an axis that never runs near it (a feed
+    // screw at 400 rpm, a spindle at 9000): the same figure at the fastest speed it runs here.
+    let top_rpm = ctx
+        .axis_of(family.axis)
+        .map_or(0.0, |a| running_speed_span(&a.speed).1);
+    let at_top_speed = |p: &mut BTreeMap<String, f64>, at: &dyn Fn(f64) -> f64| -> String {
+        let krpm = top_rpm / 1000.0;
+        if top_rpm <= 0.0 || (TOP_SPEED_NOTE_BAND.0..=TOP_SPEED_NOTE_BAND.1).contains(&krpm) {
+            return String::new();
+        }
+        let value = at(krpm);
+        p.insert("top_running_rpm".into(), top_rpm);
+        p.insert("at_top_running_speed".into(), value);
+        format!(" ({value:+.3}{unit} at {top_rpm:.0} rpm, the fastest it runs here)")
+    };
     let total: Vec<f64> = (0..ctx.time.len())
         .map(|i| {
             columns
@@ -3068,8 +3087,9 @@ pub fn explain(
             let (g1, _) = driver(1);
             p.insert("per_krpm".into(), g0);
             p.insert("per_krpm2".into(), g1);
+            let at_top = at_top_speed(&mut p, &|krpm| g0 * krpm + g1 * krpm * krpm);
             format!(
-                "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)², through τ = {tau_min:.0} min"
+                "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)²{at_top}, through τ = {tau_min:.0} min"
             )
         }
         Kind::Physics(Physics::LubricantViscosity)
@@ -3111,8 +3131,9 @@ pub fn explain(
             };
             p.insert("friction_change".into(), extra);
             if !family.lagged && coefficients.len() < 2 {
+                let at_top = at_top_speed(&mut p, &|krpm| extra * krpm.powf(2.0 / 3.0));
                 format!(
-                    "{axis_name} viscous drag differs from the simulation's: {extra:+.4}{unit} at 1000 rpm, growing as n^(2/3) (the lubricant's viscosity at its running temperature is not the simulated one; how the drag follows the temperature is not resolved in this recording)"
+                    "{axis_name} viscous drag differs from the simulation's: {extra:+.4}{unit} at 1000 rpm{at_top}, growing as n^(2/3) (the lubricant's viscosity at its running temperature is not the simulated one; how the drag follows the temperature is not resolved in this recording)"
                 )
             } else if !family.lagged {
                 p.insert("temperature_coefficient_per_K".into(), falling);
@@ -3124,8 +3145,9 @@ pub fn explain(
             } else {
                 p.insert("temperature_coefficient_per_K".into(), falling);
                 p.insert("percent_per_K".into(), relative);
+                let at_top = at_top_speed(&mut p, &|krpm| extra * krpm.powf(5.0 / 3.0));
                 format!(
-                    "the {axis_name} bearings' drag heat (Palmgren, ∝ n^(5/3)) differs from the simulation's: {extra:+.3}{unit} at a steady 1000 rpm, falling by {falling:+.3}{unit} per K as the lubricant warms ({relative:+.1} %/K), through τ = {tau_min:.0} min"
+                    "the {axis_name} bearings' drag heat (Palmgren, ∝ n^(5/3)) differs from the simulation's: {extra:+.3}{unit} at a steady 1000 rpm{at_top}, falling by {falling:+.3}{unit} per K as the lubricant warms ({relative:+.1} %/K), through τ = {tau_min:.0} min"
                 )
             }
         }
@@ -3150,8 +3172,9 @@ pub fn explain(
         }
         Kind::Physics(Physics::CoulombReversal) if family.lagged => {
             p.insert("per_krpm".into(), g0);
+            let at_top = at_top_speed(&mut p, &|krpm| g0 * krpm);
             format!(
-                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state, through τ = {tau_min:.0} min",
+                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state{at_top}, through τ = {tau_min:.0} min",
                 if g0 >= 0.0 { "lacks" } else { "overstates" },
                 g0.abs()
             )

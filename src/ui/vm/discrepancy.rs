@@ -286,11 +286,13 @@ fn parameter_value(name: &str, value: f64, target_unit: &str) -> String {
         "per_krpm" => per("/krpm"),
         "per_krpm2" => per("/krpm²"),
         "lowest_at" | "highest_at" => "mm".into(),
+        "top_running_rpm" | "simulated_at_rpm" => "rpm".into(),
         "effect_range"
         | "mean_effect"
         | "largest_effect"
         | "difference_on_vs_off"
         | "at_rms_current"
+        | "at_top_running_speed"
         | "friction_change"
         | "friction_step"
         | "stribeck_excess"
