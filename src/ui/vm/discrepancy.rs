@@ -278,7 +278,6 @@ fn parameter_value(name: &str, value: f64, target_unit: &str) -> String {
     let unit = match name {
         n if n.ends_with("_min") => "min".to_string(),
         n if n.ends_with("_s") => "s".to_string(),
-        "percent_per_K" => "%/K".into(),
         "temperature_coefficient_per_K" => "1/K".into(),
         "gain_per_K" => per("/K"),
         "per_A2" => per("/A²"),
