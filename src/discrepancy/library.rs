@@ -938,6 +938,21 @@ fn coolant_share_of_rise(gain: f64, feedback: f64, speedup: f64) -> Option<f64> 
     (-1.0..=1.0).contains(&share).then_some(share)
 }
 
+/// A lag's time constant as a sentence gives it. A lag slower than the recording is long shows
+/// only its start: its τ is a fitted number the recording does not resolve (1534 min on a
+/// 5.3 h run), and the sentence says so.
+fn tau_phrase(tau_s: f64, duration_s: f64) -> String {
+    let tau_min = tau_s / 60.0;
+    if tau_s > duration_s && duration_s > 0.0 {
+        format!(
+            "τ = {tau_min:.0} min, longer than the {:.1} h recording",
+            duration_s / 3600.0
+        )
+    } else {
+        format!("τ = {tau_min:.0} min")
+    }
+}
+
 /// The band of top running speeds (in 1000 rpm) within which a figure given at 1000 rpm is
 /// left to speak for itself; outside it the figure is also given at the top running speed.
 const TOP_SPEED_NOTE_BAND: (f64, f64) = (0.8, 1.25);
@@ -2747,6 +2762,7 @@ pub fn explain(
     };
     let (g0, tau0) = driver(0);
     let tau_min = tau0 / 60.0;
+    let tau = tau_phrase(tau0, ctx.duration_s);
     if family.lagged {
         p.insert("tau_min".into(), tau_min);
         for (i, l) in lags.iter().enumerate() {
@@ -2850,7 +2866,7 @@ pub fn explain(
         p.insert("winding_mean_mismatch_K".into(), mean_mismatch);
         p.insert("winding_largest_mismatch_K".into(), largest);
         let text = format!(
-            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through τ = {tau_min:.0} min; on the winding itself the analysis names {}: {}",
+            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}; on the winding itself the analysis names {}: {}",
             mean_mismatch.abs(),
             if mean_mismatch >= 0.0 {
                 "warmer"
@@ -2875,11 +2891,11 @@ pub fn explain(
             p.insert("share".into(), g0);
             if g0 >= 0.0 {
                 format!(
-                    "the real {target} lags the simulated one like a missing heat capacity: first-order lag τ = {tau_min:.1} min (share {g0:.2})"
+                    "the real {target} lags the simulated one like a missing heat capacity: first-order lag, {tau} (share {g0:.2})"
                 )
             } else {
                 format!(
-                    "the real {target} leads the simulated one: the simulation's heat capacity is too large (τ = {tau_min:.1} min, share {:.2})",
+                    "the real {target} leads the simulated one: the simulation's heat capacity is too large ({tau}, share {:.2})",
                     -g0
                 )
             }
@@ -2922,7 +2938,7 @@ pub fn explain(
                 ""
             };
             format!(
-                "the {target} follows room temperature (`{AMBIENT}`) with τ = {tau_min:.0} min and {g0:.3}{unit}/K{off}"
+                "the {target} follows room temperature (`{AMBIENT}`) with {tau} and {g0:.3}{unit}/K{off}"
             )
         }
         Kind::Physics(Physics::Coolant) => {
@@ -3022,7 +3038,7 @@ pub fn explain(
                 _ => String::new(),
             };
             format!(
-                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated{through}: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with τ = {tau_min:.0} min ({:.3}{unit} {} while the coolant flows than while it is off){convection}{held}{friction}",
+                "coolant (`{COOLANT}`, flowing {flowing:.0} % of the time) cools the {target} {how} than simulated{through}: it runs {:.3}{unit} {direction} on average and up to {:.3}{unit} {direction}, settling with {tau} ({:.3}{unit} {} while the coolant flows than while it is off){convection}{held}{friction}",
                 average.abs(),
                 extreme.abs(),
                 on_vs_off.abs(),
@@ -3083,12 +3099,12 @@ pub fn explain(
                 let nominal_rpm = 1000.0 * at.max(0.0).powf(1.0 / exponent);
                 p.insert("simulated_at_rpm".into(), nominal_rpm);
                 format!(
-                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}) where the simulation keeps the value for {nominal_rpm:.0} rpm: the {target}'s rise above its reference changes by {:+.1} % per (1000 rpm)^{exponent} from there, settling with τ = {tau_min:.0} min{into}",
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}) where the simulation keeps the value for {nominal_rpm:.0} rpm: the {target}'s rise above its reference changes by {:+.1} % per (1000 rpm)^{exponent} from there, settling with {tau}{into}",
                     100.0 * growth
                 )
             } else {
                 format!(
-                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with τ = {tau_min:.0} min{into}",
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with {tau}{into}",
                     100.0 * growth
                 )
             }
@@ -3101,7 +3117,7 @@ pub fn explain(
             p.insert("per_A2".into(), g0);
             p.insert("at_rms_current".into(), g0 * current * current);
             format!(
-                "I²R heating of the {axis_name} motor: {g0:.3e}{unit}/A² (≈ {:.3}{unit} at its rms current of {current:.1} A), through τ = {tau_min:.0} min",
+                "I²R heating of the {axis_name} motor: {g0:.3e}{unit}/A² (≈ {:.3}{unit} at its rms current of {current:.1} A), through {tau}",
                 g0 * current * current
             )
         }
@@ -3111,7 +3127,7 @@ pub fn explain(
             p.insert("per_krpm2".into(), g1);
             let at_top = at_top_speed(&mut p, &|krpm| g0 * krpm + g1 * krpm * krpm);
             format!(
-                "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)²{at_top}, through τ = {tau_min:.0} min"
+                "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)²{at_top}, through {tau}"
             )
         }
         Kind::Physics(Physics::LubricantViscosity)
@@ -3136,7 +3152,7 @@ pub fn explain(
                 ("less", "less")
             };
             format!(
-                "the {axis_name} bearings' friction is not the simulation's (the lubricant's viscosity at its running temperature): the drive draws {more} current at speed than simulated (`{current}`, {:.3} A·krpm on average), so {warmer} friction heat reaches the {target}: {mean_effect:+.3}{unit} on average, {g0:.3}{unit} per A·krpm through τ = {tau_min:.0} min",
+                "the {axis_name} bearings' friction is not the simulation's (the lubricant's viscosity at its running temperature): the drive draws {more} current at speed than simulated (`{current}`, {:.3} A·krpm on average), so {warmer} friction heat reaches the {target}: {mean_effect:+.3}{unit} on average, {g0:.3}{unit} per A·krpm through {tau}",
                 mean_power.abs(),
             )
         }
@@ -3160,13 +3176,13 @@ pub fn explain(
                 p.insert("temperature_coefficient_per_K".into(), falling);
                 p.insert("tau_min".into(), tau_min);
                 format!(
-                    "{axis_name} friction torque falls as the lubricant warms: {falling:+.4}{unit}/K at 1000 rpm, the lubricant lagging the motor by τ = {tau_min:.0} min"
+                    "{axis_name} friction torque falls as the lubricant warms: {falling:+.4}{unit}/K at 1000 rpm, the lubricant lagging the motor by {tau}"
                 )
             } else {
                 p.insert("temperature_coefficient_per_K".into(), falling);
                 let at_top = at_top_speed(&mut p, &|krpm| extra * krpm.powf(5.0 / 3.0));
                 format!(
-                    "the {axis_name} bearings' drag heat (Palmgren, ∝ n^(5/3)) differs from the simulation's: {extra:+.3}{unit} at a steady 1000 rpm{at_top}, falling by {falling:+.3}{unit} per K as the lubricant warms, through τ = {tau_min:.0} min"
+                    "the {axis_name} bearings' drag heat (Palmgren, ∝ n^(5/3)) differs from the simulation's: {extra:+.3}{unit} at a steady 1000 rpm{at_top}, falling by {falling:+.3}{unit} per K as the lubricant warms, through {tau}"
                 )
             }
         }
@@ -3184,7 +3200,7 @@ pub fn explain(
             p.insert("step_share_of_current_difference".into(), explained);
             p.insert("per_A2".into(), g0);
             format!(
-                "friction that flips with the direction of motion makes the real {axis_name} drive draw {:.3} A {} than simulated while it moves (a Coulomb step, from comparing the two recordings' currents); its I²R heat warms the {target} by {g0:.3e}{unit}/A², through τ = {tau_min:.0} min",
+                "friction that flips with the direction of motion makes the real {axis_name} drive draw {:.3} A {} than simulated while it moves (a Coulomb step, from comparing the two recordings' currents); its I²R heat warms the {target} by {g0:.3e}{unit}/A², through {tau}",
                 step.abs(),
                 if step >= 0.0 { "more" } else { "less" }
             )
@@ -3193,7 +3209,7 @@ pub fn explain(
             p.insert("per_krpm".into(), g0);
             let at_top = at_top_speed(&mut p, &|krpm| g0 * krpm);
             format!(
-                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state{at_top}, through τ = {tau_min:.0} min",
+                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state{at_top}, through {tau}",
                 if g0 >= 0.0 { "lacks" } else { "overstates" },
                 g0.abs()
             )
@@ -3218,7 +3234,7 @@ pub fn explain(
             let to_position = |u: f64| pmin + (u + 1.0) / 2.0 * (pmax - pmin);
             if family.lagged {
                 format!(
-                    "heat enters where the {axis_name} axis works along its stroke ({:.0}–{:.0}): the {target} depends on where it runs (effect range {span:.3}{unit}), through τ = {tau_min:.0} min",
+                    "heat enters where the {axis_name} axis works along its stroke ({:.0}–{:.0}): the {target} depends on where it runs (effect range {span:.3}{unit}), through {tau}",
                     pmin, pmax
                 )
             } else {
@@ -3387,6 +3403,15 @@ mod tests {
         assert_eq!(share(&warming), None);
         let only_noise: Vec<f64> = (0..6000).map(noise).collect();
         assert_eq!(share(&only_noise), None);
+    }
+
+    #[test]
+    fn a_time_constant_longer_than_the_recording_is_said_to_be() {
+        assert_eq!(tau_phrase(2520.0, 19_080.0), "τ = 42 min");
+        assert_eq!(
+            tau_phrase(92_040.0, 19_080.0),
+            "τ = 1534 min, longer than the 5.3 h recording"
+        );
     }
 
     #[test]
