@@ -278,8 +278,9 @@ fn parameter_value(name: &str, value: f64, target_unit: &str) -> String {
     let unit = match name {
         n if n.ends_with("_min") => "min".to_string(),
         n if n.ends_with("_s") => "s".to_string(),
-        "temperature_coefficient_per_K" => "1/K".into(),
-        "gain_per_K" => per("/K"),
+        // A lubricant's temperature coefficient is the drag's fall per K at 1000 rpm, in the
+        // target's unit (not a share).
+        "gain_per_K" | "temperature_coefficient_per_K" => per("/K"),
         "per_A2" => per("/A²"),
         "drift_per_hour" => per("/h"),
         "per_krpm" => per("/krpm"),
@@ -404,6 +405,18 @@ mod tests {
         assert_eq!(parameter_value("effect_range", 2.0, "°C"), "2.0000 °C");
         assert_eq!(parameter_value("share", 0.5, "°C"), "0.5000");
         assert_eq!(parameter_value("gain_per_K", 3.8, ""), "3.8000 1/K");
+        assert_eq!(
+            parameter_value("temperature_coefficient_per_K", -0.0012, "N·m"),
+            "-0.0012 N·m/K"
+        );
+        assert_eq!(
+            parameter_value("top_running_rpm", 376.0, "°C"),
+            "376.0000 rpm"
+        );
+        assert_eq!(
+            parameter_value("at_top_running_speed", 2.3, "°C"),
+            "2.3000 °C"
+        );
         assert_eq!(
             condition_text("S.speed_rpm:moving_share", 0.615),
             "S moving 62 % of the time"
