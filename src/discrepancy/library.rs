@@ -392,7 +392,7 @@ impl fmt::Debug for CoolantLags {
 /// Share of a real target's spread that may vary between a coarser simulation's instants
 /// before the simulation is taken not to resolve it: half. The independent check's X torque
 /// reverses every 4–6 s; at a 2.5 s export 0.38–0.40 of its spread lay between the instants
-/// and its 26 s delay was named, at a 10 s export 1.03 did and a delay of 141 s was fitted
+/// and its 26 s delay was named, at a 10 s export 1.06 did and a delay of 141 s was fitted
 /// to a true 14 s (docs/discrepancy.md). Slow temperatures: 0.01–0.04.
 const TOO_COARSE_SHARE: f64 = 0.5;
 
