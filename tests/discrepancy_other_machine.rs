@@ -279,7 +279,7 @@ fn coulomb_friction_left_out_is_named_on_the_winding_through_the_current_it_draw
     assert_held_out_within_the_thermometer_noise(&report);
 }
 
-/// The physics a report says it did not try on `target`, with the reasons.
+/// The physics a report says it did not try, with the reasons.
 fn not_tested(report: &serde_json::Value) -> Vec<(String, String)> {
     report["not_tested"]
         .as_array()
