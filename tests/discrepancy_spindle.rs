@@ -166,6 +166,17 @@ fn copper_loss_left_out(seed: u64, target: &str) -> serde_json::Value {
     report(seed, REAL_WITH_COPPER_LOSS, simulated, target)
 }
 
+/// A finding's `parameter` within 5 % of the network's closed form `expected`.
+fn assert_within_five_percent(finding: &serde_json::Value, parameter: &str, expected: f64) {
+    let fitted = finding["parameters"][parameter]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!(
+        (fitted / expected - 1.0).abs() < 0.05,
+        "{parameter} {fitted} against the closed form's {expected}"
+    );
+}
+
 /// The copper loss is named first on the part, through the winding, with the part's steady
 /// gain per kelvin of the winding within 5 % of the network's closed form, and the corrected
 /// simulation within 1.5 × the instrument's noise out of sample.
@@ -186,13 +197,7 @@ fn assert_inherited_through_the_winding(report: &serde_json::Value, gain: f64, n
             ),
         "{explanation}"
     );
-    let fitted = finding["parameters"]["gain_per_K"]
-        .as_f64()
-        .unwrap_or(f64::NAN);
-    assert!(
-        (fitted / gain - 1.0).abs() < 0.05,
-        "gain {fitted} per K of winding against {gain}"
-    );
+    assert_within_five_percent(finding, "gain_per_K", gain);
     let mismatch = finding["parameters"]["winding_mean_mismatch_K"]
         .as_f64()
         .unwrap_or(f64::NAN);
@@ -275,13 +280,7 @@ fn viscosity_left_out_is_named_on_the_parts_through_the_friction_the_drive_measu
         "{explanation}"
     );
     let gain = GROWTH_UM_PER_K.1 * DRAG_HEAT_PER_FRICTION_POWER / 1.5;
-    let fitted = finding["parameters"]["gain_per_unit_power"]
-        .as_f64()
-        .unwrap_or(f64::NAN);
-    assert!(
-        (fitted / gain - 1.0).abs() < 0.05,
-        "growth: {fitted} µm per A·krpm against {gain}"
-    );
+    assert_within_five_percent(finding, "gain_per_unit_power", gain);
     let rmse = growth["improved"]["rmse"].as_f64().unwrap_or(f64::NAN);
     assert!(rmse < 1.5 * NOISE.1, "growth: held-out RMSE {rmse} µm");
 }

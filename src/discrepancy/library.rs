@@ -428,8 +428,7 @@ impl TooCoarse {
         let between: Vec<f64> = fine.iter().zip(&rebuilt).map(|(f, r)| f - r).collect();
         let between = super::series::rms(&between);
         let spread = super::series::std_dev(fine);
-        let steps: Vec<f64> = fine.windows(2).map(|w| w[1] - w[0]).collect();
-        let noise = super::series::robust_sigma(&steps) / std::f64::consts::SQRT_2;
+        let noise = crate::fit::autocorrelation::white_noise_from_differences(fine);
         let share = between / spread;
         (share.is_finite()
             && share >= TOO_COARSE_SHARE
@@ -977,6 +976,23 @@ fn delay_sentence(target: &str, delay_s: f64, share: f64) -> String {
             "the measured {target} runs {:.1} s ahead of the simulated one (the simulation is late; {how})",
             -delay_s
         )
+    }
+}
+
+/// Whether the target warms with a winding (positive), cools as it warms (negative) or cannot
+/// tell (zero, without the winding's signal): a temperature always warms with it; anything
+/// else (a growth) by the sign of its simulated course's covariance with `winding`.
+fn warms_with_winding(ctx: &Context, winding: Option<&[f64]>) -> f64 {
+    match ctx.class {
+        TargetClass::Temperature => 1.0,
+        _ => winding.map_or(0.0, |winding| {
+            let (s, w) = (mean(&ctx.sim), mean(winding));
+            ctx.sim
+                .iter()
+                .zip(winding)
+                .map(|(a, b)| (a - s) * (b - w))
+                .sum()
+        }),
     }
 }
 
@@ -1725,17 +1741,7 @@ fn coolant_through_the_winding_family(
     const FRICTION: usize = 2;
     let axis = axis_signals.axis;
     let stator = axis_column(axis, Quantity::StatorTemp);
-    let warms_with_winding = match ctx.class {
-        TargetClass::Temperature => 1.0,
-        _ => axis_signals.stator.as_deref().map_or(0.0, |stator| {
-            let (s, w) = (mean(&ctx.sim), mean(stator));
-            ctx.sim
-                .iter()
-                .zip(stator)
-                .map(|(a, b)| (a - s) * (b - w))
-                .sum()
-        }),
-    };
+    let warms_with_winding = warms_with_winding(ctx, axis_signals.stator.as_deref());
     if warms_with_winding == 0.0 {
         // The sign of the coolant's effect is unknown: no limits, and no refinements whose
         // terms the limits keep apart.
@@ -1925,17 +1931,7 @@ fn winding_mismatch_family(
     };
     let axis = axis_signals.axis;
     let winding = axis_column(axis, Quantity::StatorTemp);
-    let warms_with_winding = match ctx.class {
-        TargetClass::Temperature => 1.0,
-        _ => {
-            let (s, w) = (mean(&ctx.sim), mean(simulated));
-            ctx.sim
-                .iter()
-                .zip(simulated)
-                .map(|(a, b)| (a - s) * (b - w))
-                .sum()
-        }
-    };
+    let warms_with_winding = warms_with_winding(ctx, Some(simulated));
     let limits = if warms_with_winding > 0.0 {
         vec![GainLimit::positive(0)]
     } else if warms_with_winding < 0.0 {

@@ -383,6 +383,28 @@ fn leaves_gross_mismatch(floor: &NoiseFloor) -> bool {
     floor.rms >= GROSS_MISMATCH_NOISE_RATIO * floor.sample_noise_rms
 }
 
+/// The localisation's spans between mismatch regions that are evidence the simulation is
+/// right there. Its threshold stands on what the corrections leave; when that is itself a
+/// gross mismatch, a span below it is no such evidence (a torque a coarse export aliases:
+/// "right" at 1.33 N·m beside 0.07 N·m of sample noise), and only spans whose mismatch is
+/// near the sample noise are kept. Nor is a span right where the simulation's instants do not
+/// hold the target's course: its mismatch there looks like noise from one instant to the next
+/// (1.25 N·m "from sample to sample" against a torque sensor's 0.02, test
+/// `a_delay_is_not_fitted_to_a_simulation_exported_too_coarsely_to_hold_it`).
+fn spans_shown_right(agreement: Vec<Region>, floor: &NoiseFloor, ctx: &Context) -> Vec<Region> {
+    if ctx.too_coarse.is_some() {
+        return Vec::new();
+    }
+    if !leaves_gross_mismatch(floor) {
+        return agreement;
+    }
+    let near_noise = GROSS_MISMATCH_NOISE_RATIO * floor.sample_noise_rms;
+    agreement
+        .into_iter()
+        .filter(|r| r.rms_residual < near_noise)
+        .collect()
+}
+
 fn analyse_watched(
     sim: &crate::signal::Recording,
     real: &crate::signal::Recording,
@@ -913,26 +935,7 @@ fn analyse_with(
         improved: held_out.last().copied().unwrap_or(calibrated),
         calibrated,
         mismatch_regions: located.mismatch,
-        // The localisation's threshold stands on what the corrections leave; when that is
-        // itself a gross mismatch, a span below it is no evidence the simulation is right
-        // there (a torque a coarse export aliases: "right" at 1.33 N·m beside 0.07 N·m of
-        // sample noise). Only spans whose mismatch is near the sample noise are kept. Nor is
-        // a span right where the simulation's instants do not hold the target's course: its
-        // mismatch there looks like noise from one instant to the next (1.25 N·m "from sample
-        // to sample" against a torque sensor's 0.02, test
-        // `a_delay_is_not_fitted_to_a_simulation_exported_too_coarsely_to_hold_it`).
-        agreement_regions: if ctx.too_coarse.is_some() {
-            Vec::new()
-        } else if leaves_gross_mismatch(&noise_floor) {
-            let near_noise = GROSS_MISMATCH_NOISE_RATIO * noise_floor.sample_noise_rms;
-            located
-                .agreement
-                .into_iter()
-                .filter(|r| r.rms_residual < near_noise)
-                .collect()
-        } else {
-            located.agreement
-        },
+        agreement_regions: spans_shown_right(located.agreement, &noise_floor, &ctx),
         findings,
         calibration,
         noise_floor,
