@@ -223,6 +223,35 @@ fn copper_loss_left_out_reaches_the_front_bearing_through_the_winding() {
     assert_inherited_through_the_winding(&report, bearing, NOISE.0);
 }
 
+/// A part can name physics of its own and still be left far from its measurement by what it
+/// inherits from the winding: here the bearings' drag falls as the oil warms (which the
+/// bearing's own analysis names) and the copper loss left out heats the winding, which the
+/// coolant cools too hard for the part's copper forms to follow. On this program the bearing's
+/// own analysis names the viscosity alone and is left 29 × its noise away (1.44 °C). Something
+/// named is no reason
+/// to stop asking while a gross mismatch is left: the winding is asked, the copper loss is named
+/// first through it, and the viscosity beside it, the corrected simulation within 1.5 × the
+/// thermometer's noise out of sample.
+#[test]
+fn a_part_that_names_its_own_physics_is_still_asked_what_it_inherits_from_its_winding() {
+    let real = Spindle {
+        copper_loss: true,
+        ..REAL_WITH_VISCOSITY
+    };
+    let simulated = Spindle {
+        copper_loss: false,
+        viscosity_falls: false,
+        ..REAL_WITH_VISCOSITY
+    };
+    let report = report(4, real, simulated, "ref.S.front_bearing_temp_C");
+    let (bearing, _) = steady_gain_per_winding_kelvin();
+    assert_inherited_through_the_winding(&report, bearing, NOISE.0);
+    assert_eq!(
+        report["findings"][1]["physics"], "lubricant_viscosity",
+        "{report}"
+    );
+}
+
 /// The lubricant's viscosity left out: named first on the bearing and on the growth, and the
 /// corrected simulation within 1.5 × the instrument's noise out of sample. On the bearing's
 /// own temperature the drag heat that falls as the bearing warms (the target's own state)

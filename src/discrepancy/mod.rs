@@ -370,11 +370,11 @@ const SELECT_AT: f32 = 0.3;
 const REFIT_AT: f32 = 0.9;
 const LOCATE_AT: f32 = 0.97;
 
-/// A part's residual this many times its sample-to-sample noise after calibration, with
-/// nothing named, is a gross mismatch: worth asking whether it is the motor's winding's
-/// (`winding_cause`). On the independent check's bearings and growths with nothing left out,
-/// or an effect that does not reach them, the ratio is 0.99–1.58 (AR(1) noise beside the
-/// white, seeds 1–10); on the three it now names (seeds 8–10), 8.2–30.
+/// A part's residual this many times its sample-to-sample noise after what its analysis named
+/// (or after calibration, with nothing named) is a gross mismatch: worth asking whether it is
+/// the motor's winding's (`winding_cause`). On the independent check's bearings and growths
+/// with nothing left out, or an effect that does not reach them, the ratio is 0.99–1.58 (AR(1)
+/// noise beside the white, seeds 1–10); on the parts it names through the winding, 4–30.
 const GROSS_MISMATCH_NOISE_RATIO: f64 = 4.0;
 
 /// Whether what the corrections leave is a gross mismatch rather than noise
@@ -417,15 +417,19 @@ fn analyse_watched(
         return Ok(report);
     };
     let inherited = analyse_with(sim, real, target, options, watch, Some(Arc::new(cause)))?;
-    Ok(if inherited.findings.is_empty() {
-        report
-    } else {
+    // Where the part named physics of its own, the second analysis stands only if it predicts
+    // the held-out blocks better (both are measured on the same blocks of the same rows).
+    let fits_better = report.findings.is_empty() || inherited.improved.rmse < report.improved.rmse;
+    Ok(if !inherited.findings.is_empty() && fits_better {
         inherited
+    } else {
+        report
     })
 }
 
-/// When a part beside a motor is left with a gross mismatch and nothing named, what the
-/// motor's winding lacks: the physics an analysis of the winding (measured by the drive in
+/// When a part beside a motor is left with a gross mismatch, whether or not its analysis named
+/// anything (what it named may be its own physics, or a lag standing in for the winding's),
+/// what the motor's winding lacks: the physics an analysis of the winding (measured by the drive in
 /// both runs) names first, if a part can inherit it. The part's analysis is then run again
 /// with the winding's mismatch on offer ([`library::WindingCause`]); the winding's own forms
 /// of the physics, rebuilt from currents and speeds, may follow the winding less faithfully
@@ -442,15 +446,11 @@ fn winding_cause(
     let Some(winding) = WindingCause::winding_of(target) else {
         return Ok(None);
     };
-    if !report.findings.is_empty()
-        || !gross
-        || sim.try_column(&winding).is_none()
-        || real.try_column(&winding).is_none()
-    {
+    if !gross || sim.try_column(&winding).is_none() || real.try_column(&winding).is_none() {
         return Ok(None);
     }
     watch.report(LOCATE_AT, || {
-        format!("nothing named on a gross mismatch: analysing the motor's winding ({winding})")
+        format!("a gross mismatch left: analysing the motor's winding ({winding})")
     })?;
     let winding_report = match analyse_with(sim, real, &winding, options, watch, None) {
         Ok(r) => r,
