@@ -34,12 +34,16 @@ ten per seed with `--pairs`):
 
     python3 scripts/independent_cases.py [--pairs] [OUT_DIR] [SEEDS]
                                                     (default /tmp/independent 1,2,3)
+
+`--long SEED EFFECT HOURS OUT_DIR` writes one case of that seed, run for HOURS at 2 Hz in both
+files, to time the command on a long recording (docs/performance.md).
 """
 import concurrent.futures
 import itertools
 import json
 import math
 import os
+import sys
 
 import numpy as np
 
@@ -248,13 +252,17 @@ def write(path, signals, every, columns):
         np.savetxt(f, rows, delimiter=",", fmt="%.6g")
 
 
-def make_case(out, seed, effect):
+def make_case(out, seed, effect, long_hours=None):
+    """One case; with `long_hours`, the same seed's draws run that long at 2 Hz in both files
+    (a long recording for timing the command, not scored)."""
     d = os.path.join(out, f"{effect}-{seed}")
     if os.path.exists(os.path.join(d, "sizes.json")):
         return d
     os.makedirs(d, exist_ok=True)
     rng = np.random.default_rng(seed)
     hours = rng.uniform(4, 8)
+    if long_hours is not None:
+        hours = long_hours
     p = program(rng, hours)
     inertia = rng.choice([rng.uniform(0.55, 0.75), rng.uniform(1.35, 1.8)])
     delay_s = rng.uniform(6, 40)
@@ -263,6 +271,8 @@ def make_case(out, seed, effect):
     correlated = seed % 2 == 0
     real_every = int(rng.choice([1, 2, 2, 4]))  # 2 Hz, 1 Hz or 0.5 Hz
     sim_every = real_every * (int(rng.choice([1, 1, 5])))  # sometimes an FEA-like coarse export
+    if long_hours is not None:
+        real_every = sim_every = 1
     full = machine(p, set(), inertia)
     sim = machine(p, left_out(effect), inertia)
     noise_rng = np.random.default_rng(noise_seed(seed, effect))
@@ -350,6 +360,10 @@ def pairs_main(out, seeds):
 
 
 def main():
+    if len(sys.argv) == 6 and sys.argv[1] == "--long":
+        _, _, seed, effect, hours, out = sys.argv
+        print(make_case(out, int(seed), effect, float(hours)))
+        return
     pairs, out, seeds = command_line("/tmp/independent", "1,2,3")
     if pairs:
         pairs_main(out, seeds)
