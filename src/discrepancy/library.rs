@@ -956,7 +956,8 @@ fn tau_phrase(tau_s: f64, duration_s: f64) -> String {
 /// delay: a share of 1 is the measured signal moved by d; far from it the shift stands in
 /// for something else as much as for a delay (−0.34 of a 7 s shift on a winding read "runs
 /// 7.0 s ahead"; in the independent check's reports, 53 of 244 delays lay outside, most of them
-/// hundreds of seconds off the true one, a few right with another effect beside them).
+/// hundreds of seconds off the true one, a few right with another effect beside them). It is
+/// the delay family's gain limit: a shift fitted outside it is not offered as a delay.
 const CLEAN_DELAY_SHARE: (f64, f64) = (0.5, 1.5);
 
 /// The sentence of a delay of `delay_s` (positive: the measurement trails) fitted at `share`
@@ -2085,7 +2086,16 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             let moved = shifted(&ctx.time, &ctx.sim, theta[0]);
             vec![moved.iter().zip(&ctx.sim).map(|(m, s)| m - s).collect()]
         }),
-        limits: Vec::new(),
+        // Only a share near a whole shift is the measured signal moved by d; a shift fitted at
+        // −0.01 stands in for a small mismatch where the simulated signal moves (a torque's
+        // reversals), at −0.2 for a lead-lag of a temperature (a heat capacity).
+        limits: vec![GainLimit {
+            driver: 0,
+            min: CLEAN_DELAY_SHARE.0,
+            max: CLEAN_DELAY_SHARE.1,
+            refined_by: None,
+            from_end: false,
+        }],
         axis: None,
         lagged: false,
         state: false,
@@ -3432,6 +3442,37 @@ mod tests {
         assert!(
             delay_sentence("ref.X.nut_temp_C", 16.0, 1.75).contains("no clean transport delay")
         );
+    }
+
+    /// A shift is offered as a delay only at a share near a whole shift: fitted at −0.01 (a
+    /// torque's small mismatch where it reverses) or −0.2 (a temperature's lead-lag, a heat
+    /// capacity), it was named "signal_delay" first in the independent check.
+    #[test]
+    fn a_shift_fitted_far_from_a_whole_shift_is_not_offered_as_a_delay() {
+        let names = |columns: &[&str]| columns.iter().map(|c| c.to_string()).collect();
+        let columns = ["time_s", "ref.S.front_bearing_temp_C"];
+        let mut sim = crate::signal::Recording::new("sim", names(&columns)).expect("valid names");
+        let mut real = crate::signal::Recording::new("real", names(&columns)).expect("valid names");
+        for i in 0..4000_u32 {
+            let t = f64::from(i);
+            let warm = 20.0 + 10.0 * (1.0 - (-t / 1200.0).exp());
+            sim.push_row(&[t, warm]).expect("a row of the schema");
+            real.push_row(&[t, warm + 0.1])
+                .expect("a row of the schema");
+        }
+        let aligned = super::super::align::Aligned::new(&sim, &real, "ref.S.front_bearing_temp_C")
+            .expect("the pair aligns");
+        let ctx = Context::new(&aligned, "ref.S.front_bearing_temp_C");
+        let (families, _) = families(&ctx);
+        let delay = families
+            .iter()
+            .find(|f| f.kind == Kind::Physics(Physics::SignalDelay))
+            .expect("a delay is offered on a simulation on the real grid");
+        let theta = [30.0];
+        let admitted = |share: f64| delay.within_limits(&theta, 1, |_| Some(share));
+        assert!(admitted(1.0) && admitted(0.6) && admitted(1.5));
+        assert!(!admitted(0.5) && !admitted(0.29) && !admitted(-0.01) && !admitted(-0.19));
+        assert!(!admitted(1.75));
     }
 
     #[test]
