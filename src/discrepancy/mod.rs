@@ -429,11 +429,11 @@ fn analyse_watched(
 
 /// When a part beside a motor is left with a gross mismatch, whether or not its analysis named
 /// anything (what it named may be its own physics, or a lag standing in for the winding's),
-/// what the motor's winding lacks: the physics an analysis of the winding (measured by the drive in
-/// both runs) names first, if a part can inherit it. The part's analysis is then run again
-/// with the winding's mismatch on offer ([`library::WindingCause`]); the winding's own forms
-/// of the physics, rebuilt from currents and speeds, may follow the winding less faithfully
-/// than its measurement does, and through the housing the part follows the winding.
+/// what the motor's winding lacks: the physics an analysis of the winding (measured by the
+/// drive in both runs) names first, if a part can inherit it. The part's analysis is then run
+/// again with the winding's mismatch on offer ([`library::WindingCause`]); the winding's own
+/// forms of the physics, rebuilt from currents and speeds, may follow the winding less
+/// faithfully than its measurement does, and through the housing the part follows the winding.
 fn winding_cause(
     sim: &crate::signal::Recording,
     real: &crate::signal::Recording,
