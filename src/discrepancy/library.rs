@@ -3444,25 +3444,38 @@ mod tests {
         );
     }
 
+    /// The context of a simulation and a recording of `columns` on one grid of `rows` rows:
+    /// `row(i)` gives the simulated and the real row `i`.
+    fn same_grid_context(
+        columns: &[&str],
+        target: &str,
+        rows: u32,
+        row: impl Fn(u32) -> (Vec<f64>, Vec<f64>),
+    ) -> Context {
+        let names: Vec<String> = columns.iter().map(|c| c.to_string()).collect();
+        let mut sim = crate::signal::Recording::new("sim", names.clone()).expect("valid names");
+        let mut real = crate::signal::Recording::new("real", names).expect("valid names");
+        for i in 0..rows {
+            let (simulated, measured) = row(i);
+            sim.push_row(&simulated).expect("a row of the schema");
+            real.push_row(&measured).expect("a row of the schema");
+        }
+        let aligned =
+            super::super::align::Aligned::new(&sim, &real, target).expect("the pair aligns");
+        Context::new(&aligned, target)
+    }
+
     /// A shift is offered as a delay only at a share near a whole shift: fitted at −0.01 (a
     /// torque's small mismatch where it reverses) or −0.2 (a temperature's lead-lag, a heat
     /// capacity), it was named "signal_delay" first in the independent check.
     #[test]
     fn a_shift_fitted_far_from_a_whole_shift_is_not_offered_as_a_delay() {
-        let names = |columns: &[&str]| columns.iter().map(|c| c.to_string()).collect();
-        let columns = ["time_s", "ref.S.front_bearing_temp_C"];
-        let mut sim = crate::signal::Recording::new("sim", names(&columns)).expect("valid names");
-        let mut real = crate::signal::Recording::new("real", names(&columns)).expect("valid names");
-        for i in 0..4000_u32 {
+        let target = "ref.S.front_bearing_temp_C";
+        let ctx = same_grid_context(&["time_s", target], target, 4000, |i| {
             let t = f64::from(i);
             let warm = 20.0 + 10.0 * (1.0 - (-t / 1200.0).exp());
-            sim.push_row(&[t, warm]).expect("a row of the schema");
-            real.push_row(&[t, warm + 0.1])
-                .expect("a row of the schema");
-        }
-        let aligned = super::super::align::Aligned::new(&sim, &real, "ref.S.front_bearing_temp_C")
-            .expect("the pair aligns");
-        let ctx = Context::new(&aligned, "ref.S.front_bearing_temp_C");
+            (vec![t, warm], vec![t, warm + 0.1])
+        });
         let (families, _) = families(&ctx);
         let delay = families
             .iter()
@@ -3504,27 +3517,19 @@ mod tests {
     /// "breakaway friction" fitted to nothing.
     #[test]
     fn a_stribeck_excess_is_offered_only_with_slow_moves_to_weigh_it() {
-        let names = |columns: &[&str]| columns.iter().map(|c| c.to_string()).collect();
         let stribeck_members = |slow_every: Option<u32>| {
             let columns = ["time_s", "X.speed_rpm", "X.torque_Nm"];
-            let mut sim =
-                crate::signal::Recording::new("sim", names(&columns)).expect("valid names");
-            let mut real =
-                crate::signal::Recording::new("real", names(&columns)).expect("valid names");
-            for i in 0..4000_u32 {
+            let ctx = same_grid_context(&columns, "X.torque_Nm", 4000, |i| {
                 let t = f64::from(i);
                 let direction = if (i / 20) % 2 == 0 { 1.0 } else { -1.0 };
                 let slow = slow_every.is_some_and(|every| i % every < 3);
                 let speed = direction * if slow { 0.5 } else { 400.0 };
                 let torque = 0.5 * direction + 1e-3 * speed;
-                sim.push_row(&[t, speed, torque])
-                    .expect("a row of the schema");
-                real.push_row(&[t, speed, torque + 0.2 * direction])
-                    .expect("a row of the schema");
-            }
-            let aligned = super::super::align::Aligned::new(&sim, &real, "X.torque_Nm")
-                .expect("the pair aligns");
-            let ctx = Context::new(&aligned, "X.torque_Nm");
+                (
+                    vec![t, speed, torque],
+                    vec![t, speed, torque + 0.2 * direction],
+                )
+            });
             let (families, _) = families(&ctx);
             let coulomb = families
                 .iter()
