@@ -35,8 +35,9 @@ ten per seed with `--pairs`):
     python3 scripts/independent_cases.py [--pairs] [OUT_DIR] [SEEDS]
                                                     (default /tmp/independent 1,2,3)
 
-`--long SEED EFFECT HOURS OUT_DIR` writes one case of that seed, run for HOURS at 2 Hz in both
-files, to time the command on a long recording (docs/performance.md).
+`--long SEED EFFECT HOURS OUT_DIR` writes one case seeded like SEED but run for HOURS at 2 Hz in
+both files, to OUT_DIR/EFFECT-SEED-longHOURSh, to time the command on a long recording
+(docs/performance.md).
 """
 import concurrent.futures
 import itertools
@@ -253,9 +254,11 @@ def write(path, signals, every, columns):
 
 
 def make_case(out, seed, effect, long_hours=None):
-    """One case; with `long_hours`, the same seed's draws run that long at 2 Hz in both files
-    (a long recording for timing the command, not scored)."""
-    d = os.path.join(out, f"{effect}-{seed}")
+    """One case; with `long_hours`, a case seeded like `seed` but run that long at 2 Hz in both
+    files, in a directory of its own (a long recording for timing the command, not scored):
+    its program begins as the seed's does, and the machine's other draws differ."""
+    d = os.path.join(out, f"{effect}-{seed}" if long_hours is None
+                     else f"{effect}-{seed}-long{long_hours:g}h")
     if os.path.exists(os.path.join(d, "sizes.json")):
         return d
     os.makedirs(d, exist_ok=True)
@@ -360,9 +363,20 @@ def pairs_main(out, seeds):
 
 
 def main():
-    if len(sys.argv) == 6 and sys.argv[1] == "--long":
+    if "--long" in sys.argv:
+        usage = "usage: independent_cases.py --long SEED EFFECT HOURS OUT_DIR"
+        if len(sys.argv) != 6 or sys.argv[1] != "--long":
+            sys.exit(usage)
         _, _, seed, effect, hours, out = sys.argv
-        print(make_case(out, int(seed), effect, float(hours)))
+        if effect not in EFFECTS + ["nothing"]:
+            sys.exit(f"{usage}\nunknown effect {effect!r}; one of {', '.join(EFFECTS)}, nothing")
+        try:
+            seed, hours = int(seed), float(hours)
+        except ValueError:
+            sys.exit(f"{usage}\nSEED must be a whole number and HOURS a number")
+        if not hours > 0:
+            sys.exit(f"{usage}\nHOURS must be positive")
+        print(make_case(out, seed, effect, hours))
         return
     pairs, out, seeds = command_line("/tmp/independent", "1,2,3")
     if pairs:

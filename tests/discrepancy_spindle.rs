@@ -228,10 +228,9 @@ fn copper_loss_left_out_reaches_the_front_bearing_through_the_winding() {
 /// bearing's own analysis names) and the copper loss left out heats the winding, which the
 /// coolant cools too hard for the part's copper forms to follow. On this program the bearing's
 /// own analysis names the viscosity alone and is left 29 × its noise away (1.44 °C). Something
-/// named is no reason
-/// to stop asking while a gross mismatch is left: the winding is asked, the copper loss is named
-/// first through it, and the viscosity beside it, the corrected simulation within 1.5 × the
-/// thermometer's noise out of sample.
+/// named is no reason to stop asking while a gross mismatch is left: the winding is asked, the
+/// copper loss is named first through it, and the viscosity beside it, the corrected
+/// simulation within 1.5 × the thermometer's noise out of sample.
 #[test]
 fn a_part_that_names_its_own_physics_is_still_asked_what_it_inherits_from_its_winding() {
     let real = Spindle {

@@ -374,7 +374,7 @@ const LOCATE_AT: f32 = 0.97;
 /// (or after calibration, with nothing named) is a gross mismatch: worth asking whether it is
 /// the motor's winding's (`winding_cause`). On the independent check's bearings and growths
 /// with nothing left out, or an effect that does not reach them, the ratio is 0.99–1.58 (AR(1)
-/// noise beside the white, seeds 1–10); on the parts it names through the winding, 4–30.
+/// noise beside the white, seeds 1–10); on the parts it names through the winding, 4–40.
 const GROSS_MISMATCH_NOISE_RATIO: f64 = 4.0;
 
 /// Whether what the corrections leave is a gross mismatch rather than noise
@@ -417,10 +417,17 @@ fn analyse_watched(
         return Ok(report);
     };
     let inherited = analyse_with(sim, real, target, options, watch, Some(Arc::new(cause)))?;
-    // Where the part named physics of its own, the second analysis stands only if it predicts
-    // the held-out blocks better (both are measured on the same blocks of the same rows).
-    let fits_better = report.findings.is_empty() || inherited.improved.rmse < report.improved.rmse;
-    Ok(if !inherited.findings.is_empty() && fits_better {
+    // Where the part named physics of its own, the second analysis stands only if it names
+    // the winding's mismatch and predicts the held-out blocks better (both are measured on
+    // the same blocks of the same rows): with more candidates its surrogates' maxima differ,
+    // and a small gain without the winding is no answer to the question asked.
+    let answers = report.findings.is_empty()
+        || (inherited.improved.rmse < report.improved.rmse
+            && inherited
+                .findings
+                .iter()
+                .any(|f| library::reads_winding_mismatch(&f.signals)));
+    Ok(if !inherited.findings.is_empty() && answers {
         inherited
     } else {
         report
@@ -1736,19 +1743,11 @@ mod tests {
     /// selection it is checked once binned, and its bin's mean is not finite either.
     #[test]
     fn a_member_with_a_value_that_is_not_finite_is_dropped_once_binned() {
-        let names = vec!["time_s".to_string(), "S.stator_temp_C".to_string()];
-        let (mut sim, mut real) = (
-            crate::signal::Recording::new("sim", names.clone()).expect("valid names"),
-            crate::signal::Recording::new("real", names).expect("valid names"),
-        );
-        for i in 0..1000 {
+        let columns = ["time_s", "S.stator_temp_C"];
+        let ctx = library::same_grid_context(&columns, "S.stator_temp_C", 1000, |i| {
             let t = f64::from(i);
-            sim.push_row(&[t, 20.0]).expect("a row of the schema");
-            real.push_row(&[t, 20.0 + 1e-3 * t])
-                .expect("a row of the schema");
-        }
-        let aligned = Aligned::new(&sim, &real, "S.stator_temp_C").expect("the pair aligns");
-        let ctx = Context::new(&aligned, "S.stator_temp_C");
+            (vec![t, 20.0], vec![t, 20.0 + 1e-3 * t])
+        });
         let bins = bin_ranges(ctx.time.len(), 64);
         let member_with = |bad: f64| {
             let family = Family {
