@@ -289,6 +289,29 @@ fn not_tested(report: &serde_json::Value) -> Vec<(String, String)> {
         .collect()
 }
 
+/// Where `X.torque_Nm` sits among [`COLUMNS`].
+fn torque_column() -> usize {
+    COLUMNS
+        .split(',')
+        .position(|c| c == "X.torque_Nm")
+        .expect("a torque column")
+}
+
+/// `csv` with the torque of every data row `k` (from 1, after the header) replaced by
+/// `torque(k, row)`.
+fn with_torque(csv: &str, torque: impl Fn(usize, &[String]) -> String) -> String {
+    csv.lines()
+        .enumerate()
+        .map(|(k, line)| {
+            let mut row: Vec<String> = line.split(',').map(str::to_string).collect();
+            if k > 0 {
+                row[torque_column()] = torque(k, &row);
+            }
+            row.join(",") + "\n"
+        })
+        .collect()
+}
+
 /// A torque has no heat capacity: a lead-lag of it, offered as one, took the part of a delay
 /// that interpolation leaves and was named beside it. The report says why it is not tried.
 #[test]
@@ -311,20 +334,19 @@ fn a_heat_capacity_is_not_offered_on_a_torque() {
 #[test]
 fn a_delay_is_not_fitted_to_a_simulation_exported_too_coarsely_to_hold_it() {
     let real = feed_axis_csv(5, REAL);
-    let mut lines: Vec<Vec<String>> = real
+    let measured: Vec<String> = real
         .lines()
-        .map(|l| l.split(',').map(str::to_string).collect())
+        .map(|line| {
+            line.split(',')
+                .nth(torque_column())
+                .unwrap_or("")
+                .to_string()
+        })
         .collect();
-    let torque = COLUMNS
-        .split(',')
-        .position(|c| c == "X.torque_Nm")
-        .expect("a torque column");
     let delay_rows = 15;
-    let measured: Vec<String> = lines.iter().map(|row| row[torque].clone()).collect();
-    for (k, row) in lines.iter_mut().enumerate().skip(1) {
-        row[torque] = measured[k.saturating_sub(delay_rows).max(1)].clone();
-    }
-    let delayed: String = lines.iter().map(|row| row.join(",") + "\n").collect();
+    let delayed = with_torque(&real, |k, _| {
+        measured[k.saturating_sub(delay_rows).max(1)].clone()
+    });
     let simulated = feed_axis_csv(
         5,
         Physics {
@@ -372,24 +394,12 @@ fn a_delay_is_not_fitted_to_a_simulation_exported_too_coarsely_to_hold_it() {
 #[test]
 fn no_span_is_called_right_where_what_is_left_is_far_above_the_noise() {
     let real = feed_axis_csv(6, REAL);
-    let torque = COLUMNS
-        .split(',')
-        .position(|c| c == "X.torque_Nm")
-        .expect("a torque column");
-    let swinging: String = real
-        .lines()
-        .enumerate()
-        .map(|(k, line)| {
-            let mut row: Vec<String> = line.split(',').map(str::to_string).collect();
-            if k > 0 {
-                let t: f64 = row[0].parse().expect("a time");
-                let measured: f64 = row[torque].parse().expect("a torque");
-                let swing = 0.3 * (2.0 * std::f64::consts::PI * t / 600.0).sin();
-                row[torque] = format!("{:.5}", measured + swing);
-            }
-            row.join(",") + "\n"
-        })
-        .collect();
+    let swinging = with_torque(&real, |_, row| {
+        let t: f64 = row[0].parse().expect("a time");
+        let measured: f64 = row[torque_column()].parse().expect("a torque");
+        let swing = 0.3 * (2.0 * std::f64::consts::PI * t / 600.0).sin();
+        format!("{:.5}", measured + swing)
+    });
     let simulated = feed_axis_csv(
         6,
         Physics {

@@ -2819,10 +2819,10 @@ pub fn explain(
     let axis_name = family.axis.map(|a| a.as_str()).unwrap_or("");
     // A figure given at 1000 rpm means little on an axis that never runs near it (a feed
     // screw at 400 rpm, a spindle at 9000): the same figure at the fastest speed it runs here.
-    let top_rpm = ctx
-        .axis_of(family.axis)
-        .map_or(0.0, |a| running_speed_span(&a.speed).1);
     let at_top_speed = |p: &mut BTreeMap<String, f64>, at: &dyn Fn(f64) -> f64| -> String {
+        let top_rpm = ctx
+            .axis_of(family.axis)
+            .map_or(0.0, |a| running_speed_span(&a.speed).1);
         let krpm = top_rpm / 1000.0;
         if top_rpm <= 0.0 || (TOP_SPEED_NOTE_BAND.0..=TOP_SPEED_NOTE_BAND.1).contains(&krpm) {
             return String::new();

@@ -377,10 +377,15 @@ const LOCATE_AT: f32 = 0.97;
 /// noise beside the white, seeds 1–10); on the parts it names through the winding, 4–40.
 const GROSS_MISMATCH_NOISE_RATIO: f64 = 4.0;
 
-/// Whether what the corrections leave is a gross mismatch rather than noise
-/// ([`GROSS_MISMATCH_NOISE_RATIO`] × its sample-to-sample part).
+/// The level from which what the corrections leave is a gross mismatch rather than noise:
+/// [`GROSS_MISMATCH_NOISE_RATIO`] × its sample-to-sample part.
+fn gross_mismatch_level(floor: &NoiseFloor) -> f64 {
+    GROSS_MISMATCH_NOISE_RATIO * floor.sample_noise_rms
+}
+
+/// Whether what the corrections leave is a gross mismatch ([`gross_mismatch_level`]).
 fn leaves_gross_mismatch(floor: &NoiseFloor) -> bool {
-    floor.rms >= GROSS_MISMATCH_NOISE_RATIO * floor.sample_noise_rms
+    floor.rms >= gross_mismatch_level(floor)
 }
 
 /// The localisation's spans between mismatch regions that are evidence the simulation is
@@ -398,7 +403,7 @@ fn spans_shown_right(agreement: Vec<Region>, floor: &NoiseFloor, ctx: &Context) 
     if !leaves_gross_mismatch(floor) {
         return agreement;
     }
-    let near_noise = GROSS_MISMATCH_NOISE_RATIO * floor.sample_noise_rms;
+    let near_noise = gross_mismatch_level(floor);
     agreement
         .into_iter()
         .filter(|r| r.rms_residual < near_noise)
