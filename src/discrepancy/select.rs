@@ -645,10 +645,7 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
         let partner_holds = !accepted
             && partner_due.is_some_and(|kind| {
                 kind == problem.families[problem.members[best].family].kind
-                    && observed[0]
-                        .as_ref()
-                        .and_then(|(_, raw)| raw[best])
-                        .is_some_and(|g| g >= options.dominant_gain)
+                    && raw_gain.is_some_and(|g| g >= options.dominant_gain)
             });
         partner_due = None;
         if let Some((pair, raw_sse0, raw)) = masked {
@@ -979,12 +976,15 @@ impl<M: JointModel + Clone> Trial<M> {
 /// A slow effect far above the noise fills the data as they are, and their surrogates,
 /// phase-randomised from it, are slow waves its own kind fits as well: only the high-passed
 /// data can show it real. There it explains little of what high-passing leaves, mostly the
-/// sample noise (1 % of it for the independent check's spindle network 1.46 × heavier than
+/// sample noise (1.1 % of it for the independent check's spindle network 1.46 × heavier than
 /// simulated, seed 21, clear of the surrogates' tail at 10⁻¹⁸), so its size is read where its
 /// correction is reported: a member explaining at least half of the data as they are, a gross
 /// mismatch left ([`GROSS_MISMATCH_GAIN`]), is material. Below that the data as they are hold
-/// mostly noise, which a small gain of any kind may fit (on the twin's grid, 0.02–0.05 of it
-/// beside a torque's friction already named).
+/// mostly noise, which a small gain of any kind may fit (on the twin's grid, 0.024 and 0.047
+/// of it on two torques: viscosity beside Coulomb friction already named, and Coulomb
+/// friction ahead of a position profile).
+///
+/// In the data as they are the winner is the best member there, so its own share decides.
 fn is_material(relative: f64, view: usize, raw_gain: Option<f64>, options: &Options) -> bool {
     relative >= options.min_relative_gain
         || (view != 0 && raw_gain.is_some_and(|g| g >= GROSS_MISMATCH_GAIN))
@@ -994,8 +994,11 @@ fn is_material(relative: f64, view: usize, raw_gain: Option<f64>, options: &Opti
 /// with the corrections as they stand, faces a gross mismatch left over, as for a masked pair.
 /// A refused step is asked again after the refit ([`accepted_after_refit`]) only then: below
 /// it the question would cost a joint refit in nearly every analysis, for nothing (of the 134
-/// such winners refused on the twin's 5 h grid, none explained more than 0.53 refitted). And
-/// a kind only the high-passed data show real is material only then ([`stepwise`]).
+/// such winners refused on the twin's 5 h grid, none explained more than 0.53 refitted), a
+/// masked pair is looked for only then ([`masked_pair`]), and a kind only the high-passed data
+/// show real is material only then ([`is_material`]). Not to be confused with a part's gross
+/// mismatch to its sample noise, which asks the motor's winding (`GROSS_MISMATCH_NOISE_RATIO`
+/// in `super`).
 const GROSS_MISMATCH_GAIN: f64 = 0.5;
 
 /// Whether a refused step's winner `best` is one [`accepted_after_refit`] asks about: of fixed
@@ -1238,8 +1241,8 @@ const MASKED_PAIR_CANCELLING_CORRELATION: f64 = -0.8;
 /// held-out error the other leaves — the test a single dominant effect passes, passed by each
 /// given the other — both are grid members of kinds not chosen yet, and they do not cancel
 /// (see [`MASKED_PAIR_CANCELLING_CORRELATION`]). Tried only when the
-/// step's best member alone explains at least half of the held-out error (a gross mismatch;
-/// noise that its surrogates match does not). Judged in the data as they are (`raw`, the
+/// step's best member alone explains at least half of the held-out error
+/// ([`GROSS_MISMATCH_GAIN`]; noise that its surrogates match does not). Judged in the data as they are (`raw`, the
 /// gains of the step's first view); returns the member to admit first (the larger gain alone)
 /// and its partner.
 fn masked_pair(
@@ -1251,7 +1254,7 @@ fn masked_pair(
 ) -> Option<MaskedPair> {
     let kind_of = |m: usize| problem.families[problem.members[m].family].kind;
     let mut firsts = best_per_kind(problem, gains, None);
-    if firsts.first().is_none_or(|(_, g)| *g < 0.5) {
+    if firsts.first().is_none_or(|(_, g)| *g < GROSS_MISMATCH_GAIN) {
         return None;
     }
     firsts.truncate(MASKED_PAIR_CANDIDATES);
