@@ -952,6 +952,28 @@ fn tau_phrase(tau_s: f64, duration_s: f64) -> String {
     }
 }
 
+/// What a correction whose lag is longer than the recording adds to its sentence: its steady
+/// figures (a gain per kelvin, per A², per 1000 rpm) are where it would settle, which the
+/// recording does not show. A cause held constant from the start reaches 1 − e^(−D/τ) of
+/// its steady effect by the end (a 1352 min lag over 5.5 h: 22 %), and the correction's own
+/// spread over the recording (1st to 99th percentile) is what the data did show: "+139 °C
+/// at 7800 rpm" of steady drag heat on a bearing whose correction spans 3.3 °C (the
+/// independent check's seed 22). `None` where τ is within the recording; else the share
+/// reached and the words.
+fn unsettled_note(tau_s: f64, duration_s: f64, span: f64, unit: &str) -> Option<(f64, String)> {
+    if !(tau_s > duration_s && duration_s > 0.0) {
+        return None;
+    }
+    let reached = 1.0 - (-duration_s / tau_s).exp();
+    Some((
+        reached,
+        format!(
+            "; these are steady figures: held constant from the start, a cause reaches only about {:.0} % of them by the recording's end, and here the correction spans {span:.3}{unit}",
+            100.0 * reached
+        ),
+    ))
+}
+
 /// How far from a whole shift a delay's share may be for the shift to read as a transport
 /// delay: a share of 1 is the measured signal moved by d; far from it the shift stands in
 /// for something else as much as for a delay (−0.34 of a 7 s shift on a winding read "runs
@@ -2843,6 +2865,16 @@ pub fn explain(
         .collect();
     let span = quantile(&total, 0.99) - quantile(&total, 0.01);
     p.insert("effect_range".into(), span);
+    // Said after a sentence that gives steady figures through a lag ([`unsettled_note`]).
+    let unsettled = |p: &mut BTreeMap<String, f64>| -> String {
+        match unsettled_note(tau0, ctx.duration_s, span, &unit) {
+            Some((reached, words)) if family.lagged => {
+                p.insert("steady_share_reached".into(), reached);
+                words
+            }
+            _ => String::new(),
+        }
+    };
     let c0 = coefficients.first().copied().unwrap_or(0.0);
     // A heat source's coolant feedback is its last driver ([`heat_source_family`]). Held
     // with the coolant flowing, the heat settles at heat / (1 + speed-up) through its lags,
@@ -2912,8 +2944,9 @@ pub fn explain(
         p.insert("gain_per_K".into(), g0);
         p.insert("winding_mean_mismatch_K".into(), mean_mismatch);
         p.insert("winding_largest_mismatch_K".into(), largest);
+        let unsettled = unsettled(&mut p);
         let text = format!(
-            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}; on the winding itself the analysis names {}: {}",
+            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}{unsettled}; on the winding itself the analysis names {}: {}",
             mean_mismatch.abs(),
             if mean_mismatch >= 0.0 {
                 "warmer"
@@ -3309,7 +3342,15 @@ pub fn explain(
             }
         }
     };
-    (p, text + &coolant_note)
+    // Inertia gives a share, the coolant and a profile along the stroke what they did in
+    // this recording; the others give steady figures.
+    let unsettled = match family.kind {
+        Kind::Physics(Physics::ThermalInertia | Physics::Coolant | Physics::PositionDependent) => {
+            String::new()
+        }
+        _ => unsettled(&mut p),
+    };
+    (p, text + &coolant_note + &unsettled)
 }
 
 /// The context of a simulation and a recording of `columns` on one grid of `rows` rows:
@@ -3508,6 +3549,55 @@ mod tests {
         assert_eq!(
             tau_phrase(92_040.0, 19_080.0),
             "τ = 1534 min, longer than the 5.3 h recording"
+        );
+    }
+
+    /// The room's correction on a one-hour recording: through a 20 min lag its gain per
+    /// kelvin is a figure the recording shows settled; through a lag longer than the hour it
+    /// is an extrapolation, and the sentence says how much of it the hour could show and what
+    /// the correction spans.
+    #[test]
+    fn steady_figures_through_a_lag_longer_than_the_recording_are_said_to_be_unsettled() {
+        let columns = ["time_s", "ambient_C", "ref.X.nut_temp_C"];
+        let ctx = same_grid_context(&columns, "ref.X.nut_temp_C", 3601, |i| {
+            let t = f64::from(i);
+            let room = 20.0 + 2.0 * (t / 3600.0);
+            (
+                vec![t, room, 25.0],
+                vec![t, room, 25.0 + 0.5 * (t / 3600.0)],
+            )
+        });
+        let (families, _) = families(&ctx);
+        let room = families
+            .iter()
+            .find(|f| f.kind == Kind::Physics(Physics::AmbientTemperature))
+            .expect("the room is offered where a room column is");
+        // A member of the grid, at the time constant asked for (a refinement may fit one
+        // past the grid's, which ends at half the recording).
+        let sentence_at = |tau_s: f64| {
+            let mut theta = room.grid.first().expect("a grid").clone();
+            theta[0] = tau_s;
+            let columns = (room.build)(&ctx, &theta);
+            let coefficients = vec![0.8 / columns.len() as f64; columns.len()];
+            explain(room, &theta, &coefficients, &columns, &ctx)
+        };
+
+        let (parameters, sentence) = sentence_at(1200.0);
+        assert!(!sentence.contains("steady figures"), "{sentence}");
+        assert!(!parameters.contains_key("steady_share_reached"));
+
+        let (parameters, sentence) = sentence_at(4.0 * 3600.0);
+        let reached = parameters["steady_share_reached"];
+        let tau_s = 60.0 * parameters["tau_min"];
+        assert!((reached - (1.0 - (-3600.0 / tau_s).exp())).abs() < 1e-12);
+        assert!(reached < 0.3, "reached {reached}");
+        let span = parameters["effect_range"];
+        assert!(
+            sentence.contains(&format!(
+                "a cause reaches only about {:.0} % of them by the recording's end, and here the correction spans {span:.3} °C",
+                100.0 * reached
+            )),
+            "{sentence}"
         );
     }
 
