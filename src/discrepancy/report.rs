@@ -266,7 +266,7 @@ impl DiscrepancyReport {
     pub fn strongest_unnamed(&self) -> Option<String> {
         let last = self.method.steps.last().filter(|s| !s.accepted)?;
         Some(format!(
-            "strongest candidate not named: {}, {:.1} % of the held-out error left (p = {:.3}, tail probability {:.1e}): not enough to name it",
+            "strongest candidate not named: {}, explains {:.1} % of the held-out error left (p = {:.3}, tail probability {:.1e}): not enough to name it",
             last.physics,
             100.0 * last.relative_gain,
             last.p_value,
