@@ -552,24 +552,33 @@ fn fft_radix2(re: &mut [f64], im: &mut [f64], inverse: bool) {
         }
     }
     let sign = if inverse { 1.0 } else { -1.0 };
+    // A stage's twiddle factors are the same for each of its blocks: taken once per stage,
+    // by the same recurrence each block used to repeat (so the same values, bit for bit).
+    let mut twiddles: Vec<(f64, f64)> = Vec::with_capacity(n / 2);
     let mut len = 2;
     while len <= n {
+        let half = len / 2;
         let angle = sign * 2.0 * std::f64::consts::PI / len as f64;
         let (w_im, w_re) = angle.sin_cos();
-        for start in (0..n).step_by(len) {
-            let (mut c_re, mut c_im) = (1.0, 0.0);
-            for k in 0..len / 2 {
-                let a = start + k;
-                let b = a + len / 2;
-                let t_re = re[b] * c_re - im[b] * c_im;
-                let t_im = re[b] * c_im + im[b] * c_re;
-                re[b] = re[a] - t_re;
-                im[b] = im[a] - t_im;
-                re[a] += t_re;
-                im[a] += t_im;
-                let next_re = c_re * w_re - c_im * w_im;
-                c_im = c_re * w_im + c_im * w_re;
-                c_re = next_re;
+        twiddles.clear();
+        let (mut c_re, mut c_im) = (1.0, 0.0);
+        for _ in 0..half {
+            twiddles.push((c_re, c_im));
+            let next_re = c_re * w_re - c_im * w_im;
+            c_im = c_re * w_im + c_im * w_re;
+            c_re = next_re;
+        }
+        for (block_re, block_im) in re.chunks_exact_mut(len).zip(im.chunks_exact_mut(len)) {
+            let (a_re, b_re) = block_re.split_at_mut(half);
+            let (a_im, b_im) = block_im.split_at_mut(half);
+            for k in 0..half {
+                let (c_re, c_im) = twiddles[k];
+                let t_re = b_re[k] * c_re - b_im[k] * c_im;
+                let t_im = b_re[k] * c_im + b_im[k] * c_re;
+                b_re[k] = a_re[k] - t_re;
+                b_im[k] = a_im[k] - t_im;
+                a_re[k] += t_re;
+                a_im[k] += t_im;
             }
         }
         len <<= 1;
@@ -633,8 +642,8 @@ pub fn dft(re: &mut [f64], im: &mut [f64], inverse: bool) {
 #[derive(Debug, Clone)]
 pub struct SurrogateSpectrum {
     mean: f64,
-    re: Vec<f64>,
-    im: Vec<f64>,
+    /// The amplitude at each frequency, kept for every surrogate drawn from it.
+    amplitude: Vec<f64>,
 }
 
 impl SurrogateSpectrum {
@@ -644,7 +653,8 @@ impl SurrogateSpectrum {
         let mut re: Vec<f64> = values.iter().map(|v| v - m).collect();
         let mut im = vec![0.0; re.len()];
         dft(&mut re, &mut im, false);
-        SurrogateSpectrum { mean: m, re, im }
+        let amplitude = re.iter().zip(&im).map(|(r, i)| r.hypot(*i)).collect();
+        SurrogateSpectrum { mean: m, amplitude }
     }
 
     /// A surrogate with the same amplitude spectrum (hence the same circular autocorrelation)
@@ -657,7 +667,7 @@ impl SurrogateSpectrum {
     /// gives the same surrogates), while the transforms ([`Self::surrogate`]) can run side by
     /// side.
     pub fn draw_phases(&self, rng: &mut impl Rng) -> SurrogatePhases {
-        let n = self.re.len();
+        let n = self.amplitude.len();
         let phases = (1..n.div_ceil(2))
             .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
             .collect();
@@ -670,11 +680,11 @@ impl SurrogateSpectrum {
 
     /// The surrogate with the spectrum's amplitudes and `phases`.
     pub fn surrogate(&self, phases: &SurrogatePhases) -> Vec<f64> {
-        let n = self.re.len();
+        let n = self.amplitude.len();
         let mut re = vec![0.0; n];
         let mut im = vec![0.0; n];
         for (k, phase) in (1..n.div_ceil(2)).zip(&phases.phases) {
-            let amplitude = self.re[k].hypot(self.im[k]);
+            let amplitude = self.amplitude[k];
             let (s, c) = phase.sin_cos();
             re[k] = amplitude * c;
             im[k] = amplitude * s;
@@ -682,7 +692,7 @@ impl SurrogateSpectrum {
             im[n - k] = -amplitude * s;
         }
         if n.is_multiple_of(2) && n > 0 {
-            let amplitude = self.re[n / 2].hypot(self.im[n / 2]);
+            let amplitude = self.amplitude[n / 2];
             re[n / 2] = if phases.nyquist_negative {
                 -amplitude
             } else {
