@@ -3378,6 +3378,16 @@ pub(crate) fn same_grid_context(
 mod tests {
     use super::*;
 
+    /// The first family of `physics` the library offers on `ctx`; `why` says why the test
+    /// expects one.
+    fn offered_family(ctx: &Context, physics: Physics, why: &str) -> Family {
+        families(ctx)
+            .0
+            .into_iter()
+            .find(|f| f.kind == Kind::Physics(physics))
+            .expect(why)
+    }
+
     #[test]
     fn the_running_speeds_span_ignores_standstill_and_direction() {
         // A third of the rows stand still; of the running rows, 30 % at 100 rpm, 40 % at
@@ -3441,11 +3451,7 @@ mod tests {
             .time
             .len();
         assert!(real_rows > ctx.time.len());
-        let (families, _) = families(&ctx);
-        let coolant = families
-            .iter()
-            .find(|f| f.kind == Kind::Physics(Physics::Coolant))
-            .expect("the coolant switches");
+        let coolant = offered_family(&ctx, Physics::Coolant, "the coolant switches");
         let member = |speedup: f64| {
             coolant
                 .grid
@@ -3455,7 +3461,7 @@ mod tests {
         };
         let (plain, faster) = (member(0.0), member(2.0));
         assert_eq!(plain[0], faster[0]);
-        let columns = |theta: &[f64]| super::super::build(coolant, &ctx, theta);
+        let columns = |theta: &[f64]| super::super::build(&coolant, &ctx, theta);
         let (plain, faster) = (columns(plain), columns(faster));
         assert!(!faster.is_empty(), "the faster lags were dropped");
         assert_eq!(faster.len(), plain.len());
@@ -3531,11 +3537,11 @@ mod tests {
             let warm = 20.0 + 10.0 * (1.0 - (-t / 1200.0).exp());
             (vec![t, warm], vec![t, warm + 0.1])
         });
-        let (families, _) = families(&ctx);
-        let delay = families
-            .iter()
-            .find(|f| f.kind == Kind::Physics(Physics::SignalDelay))
-            .expect("a delay is offered on a simulation on the real grid");
+        let delay = offered_family(
+            &ctx,
+            Physics::SignalDelay,
+            "a delay is offered on a simulation on the real grid",
+        );
         let theta = [30.0];
         let admitted = |share: f64| delay.within_limits(&theta, 1, |_| Some(share));
         assert!(admitted(1.0) && admitted(0.6) && admitted(1.5));
@@ -3567,11 +3573,11 @@ mod tests {
                 vec![t, room, 25.0 + 0.5 * (t / 3600.0)],
             )
         });
-        let (families, _) = families(&ctx);
-        let room = families
-            .iter()
-            .find(|f| f.kind == Kind::Physics(Physics::AmbientTemperature))
-            .expect("the room is offered where a room column is");
+        let room = offered_family(
+            &ctx,
+            Physics::AmbientTemperature,
+            "the room is offered where a room column is",
+        );
         // A member of the grid, at the time constant asked for (a refinement may fit one
         // past the grid's, which ends at half the recording).
         let sentence_at = |tau_s: f64| {
@@ -3579,7 +3585,7 @@ mod tests {
             theta[0] = tau_s;
             let columns = (room.build)(&ctx, &theta);
             let coefficients = vec![0.8 / columns.len() as f64; columns.len()];
-            explain(room, &theta, &coefficients, &columns, &ctx)
+            explain(&room, &theta, &coefficients, &columns, &ctx)
         };
 
         let (parameters, sentence) = sentence_at(1200.0);
