@@ -952,26 +952,53 @@ fn tau_phrase(tau_s: f64, duration_s: f64) -> String {
     }
 }
 
-/// What a correction whose lag is longer than the recording adds to its sentence: its steady
-/// figures (a gain per kelvin, per A², per 1000 rpm) are where it would settle, which the
-/// recording does not show. A cause held constant from the start reaches 1 − e^(−D/τ) of
-/// its steady effect by the end (a 1352 min lag over 5.5 h: 22 %), and the correction's own
-/// spread over the recording (1st to 99th percentile) is what the data did show: "+139 °C
-/// at 7800 rpm" of steady drag heat on a bearing whose correction spans 3.3 °C (the
-/// independent check's seed 22). `None` where τ is within the recording; else the share
-/// reached and the words.
-fn unsettled_note(tau_s: f64, duration_s: f64, span: f64, unit: &str) -> Option<(f64, String)> {
+/// What a correction whose lag is longer than the recording adds to its sentence, right after
+/// its τ: its steady figures (a gain per kelvin, per A², per 1000 rpm) are where it would
+/// settle, which the recording does not show. A cause held constant from the start reaches
+/// Σ cᵢ (1 − e^(−D/τᵢ)) / Σ cᵢ of its steady effect by the end, for the first driver's
+/// coefficients cᵢ on its lags τᵢ (one lag of 1352 min over 5.5 h: 22 %); the correction's own
+/// spread over the recording (1st to 99th percentile) is what the data did show: "+139 °C at
+/// 7800 rpm" of steady drag heat on a bearing whose correction spans 3.3 °C (the independent
+/// check's seed 22). Where the lags push opposite ways so that the share is not between 0
+/// and 1, no share is given, only the span. `None` where τ (`tau_s`, the sentence's) is within
+/// the recording; else the share reached, if one is given, and the words.
+fn unsettled_note(
+    tau_s: f64,
+    coefficients: &[f64],
+    lags: &[f64],
+    duration_s: f64,
+    span: f64,
+    unit: &str,
+) -> Option<(Option<f64>, String)> {
     if !(tau_s > duration_s && duration_s > 0.0) {
         return None;
     }
-    let reached = 1.0 - (-duration_s / tau_s).exp();
-    Some((
-        reached,
-        format!(
-            "; these are steady figures: held constant from the start, a cause reaches only about {:.0} % of them by the recording's end, and here the correction spans {span:.3}{unit}",
-            100.0 * reached
-        ),
-    ))
+    let gain: f64 = coefficients.iter().sum();
+    let reached: f64 = coefficients
+        .iter()
+        .zip(lags)
+        .map(|(c, lag)| c * (1.0 - (-duration_s / lag).exp()))
+        .sum::<f64>()
+        / gain;
+    let spans = format!("here the correction spans {span:.3}{unit}");
+    Some(if reached > 0.0 && reached <= 1.0 && gain != 0.0 {
+        let share = if reached < 0.01 {
+            "under 1 %".to_string()
+        } else {
+            format!("about {:.0} %", 100.0 * reached)
+        };
+        (
+            Some(reached),
+            format!(
+                "; these are steady figures: held constant from the start, a cause reaches only {share} of them by the recording's end, and {spans}"
+            ),
+        )
+    } else {
+        (
+            None,
+            format!("; these are steady figures, which the recording does not reach: {spans}"),
+        )
+    })
 }
 
 /// How far from a whole shift a delay's share may be for the shift to read as a transport
@@ -2865,11 +2892,16 @@ pub fn explain(
         .collect();
     let span = quantile(&total, 0.99) - quantile(&total, 0.01);
     p.insert("effect_range".into(), span);
-    // Said after a sentence that gives steady figures through a lag ([`unsettled_note`]).
-    let unsettled = |p: &mut BTreeMap<String, f64>| -> String {
-        match unsettled_note(tau0, ctx.duration_s, span, &unit) {
+    // Said right after the τ of a sentence that gives steady figures through a lag
+    // ([`unsettled_note`]); each such sentence asks for it.
+    let steady_note = |p: &mut BTreeMap<String, f64>| -> String {
+        let first = family.driver_columns(theta, 0);
+        let first = coefficients.get(first).unwrap_or(&[]);
+        match unsettled_note(tau0, first, &lags, ctx.duration_s, span, &unit) {
             Some((reached, words)) if family.lagged => {
-                p.insert("steady_share_reached".into(), reached);
+                if let Some(reached) = reached {
+                    p.insert("steady_share_reached".into(), reached);
+                }
                 words
             }
             _ => String::new(),
@@ -2944,7 +2976,7 @@ pub fn explain(
         p.insert("gain_per_K".into(), g0);
         p.insert("winding_mean_mismatch_K".into(), mean_mismatch);
         p.insert("winding_largest_mismatch_K".into(), largest);
-        let unsettled = unsettled(&mut p);
+        let unsettled = steady_note(&mut p);
         let text = format!(
             "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}{unsettled}; on the winding itself the analysis names {}: {}",
             mean_mismatch.abs(),
@@ -3008,8 +3040,9 @@ pub fn explain(
             } else {
                 ""
             };
+            let unsettled = steady_note(&mut p);
             format!(
-                "the {target} follows room temperature (`{AMBIENT}`) with {tau} and {g0:.3}{unit}/K{off}"
+                "the {target} follows room temperature (`{AMBIENT}`) by {g0:.3}{unit}/K{off}, through {tau}{unsettled}"
             )
         }
         Kind::Physics(Physics::Coolant) => {
@@ -3161,6 +3194,7 @@ pub fn explain(
             } else {
                 String::new()
             };
+            let unsettled = steady_note(&mut p);
             if nominal && growth < 0.0 {
                 let (slow, fast) = ctx
                     .axis_of(family.axis)
@@ -3170,12 +3204,12 @@ pub fn explain(
                 let nominal_rpm = 1000.0 * at.max(0.0).powf(1.0 / exponent);
                 p.insert("simulated_at_rpm".into(), nominal_rpm);
                 format!(
-                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}) where the simulation keeps the value for {nominal_rpm:.0} rpm: the {target}'s rise above its reference changes by {:+.1} % per (1000 rpm)^{exponent} from there, settling with {tau}{into}",
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}) where the simulation keeps the value for {nominal_rpm:.0} rpm: the {target}'s rise above its reference changes by {:+.1} % per (1000 rpm)^{exponent} from there, settling with {tau}{unsettled}{into}",
                     100.0 * growth
                 )
             } else {
                 format!(
-                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with {tau}{into}",
+                    "convective cooling grows with {axis_name} speed (∝ n^{exponent}): at 1000 rpm the {target}'s rise above its reference changes by {:+.1} %, settling with {tau}{unsettled}{into}",
                     100.0 * growth
                 )
             }
@@ -3187,8 +3221,9 @@ pub fn explain(
                 .map_or(0.0, |c| super::series::rms(c));
             p.insert("per_A2".into(), g0);
             p.insert("at_rms_current".into(), g0 * current * current);
+            let unsettled = steady_note(&mut p);
             format!(
-                "I²R heating of the {axis_name} motor: {g0:.3e}{unit}/A² (≈ {:.3}{unit} at its rms current of {current:.1} A), through {tau}",
+                "I²R heating of the {axis_name} motor: {g0:.3e}{unit}/A² (≈ {:.3}{unit} at its rms current of {current:.1} A), through {tau}{unsettled}",
                 g0 * current * current
             )
         }
@@ -3197,8 +3232,9 @@ pub fn explain(
             p.insert("per_krpm".into(), g0);
             p.insert("per_krpm2".into(), g1);
             let at_top = at_top_speed(&mut p, &|krpm| g0 * krpm + g1 * krpm * krpm);
+            let unsettled = steady_note(&mut p);
             format!(
-                "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)²{at_top}, through {tau}"
+                "iron loss of the {axis_name} motor (hysteresis ∝ n, eddy currents ∝ n²): {g0:+.3}{unit} per 1000 rpm plus {g1:+.3}{unit} per (1000 rpm)²{at_top}, through {tau}{unsettled}"
             )
         }
         Kind::Physics(Physics::LubricantViscosity)
@@ -3217,13 +3253,14 @@ pub fn explain(
             p.insert("gain_per_unit_power".into(), g0);
             p.insert("mean_extra_friction_power".into(), mean_power);
             p.insert("mean_effect".into(), mean_effect);
+            let unsettled = steady_note(&mut p);
             let (more, warmer) = if mean_power >= 0.0 {
                 ("more", "more")
             } else {
                 ("less", "less")
             };
             format!(
-                "the {axis_name} bearings' friction is not the simulation's (the lubricant's viscosity at its running temperature): the drive draws {more} current at speed than simulated (`{current}`, {:.3} A·krpm on average), so {warmer} friction heat reaches the {target}: {mean_effect:+.3}{unit} on average, {g0:.3}{unit} per A·krpm through {tau}",
+                "the {axis_name} bearings' friction is not the simulation's (the lubricant's viscosity at its running temperature): the drive draws {more} current at speed than simulated (`{current}`, {:.3} A·krpm on average), so {warmer} friction heat reaches the {target}: {g0:.3}{unit} per A·krpm through {tau}{unsettled}, {mean_effect:+.3}{unit} on average here",
                 mean_power.abs(),
             )
         }
@@ -3252,8 +3289,9 @@ pub fn explain(
             } else {
                 p.insert("temperature_coefficient_per_K".into(), falling);
                 let at_top = at_top_speed(&mut p, &|krpm| extra * krpm.powf(5.0 / 3.0));
+                let unsettled = steady_note(&mut p);
                 format!(
-                    "the {axis_name} bearings' drag heat (Palmgren, ∝ n^(5/3)) differs from the simulation's: {extra:+.3}{unit} at a steady 1000 rpm{at_top}, falling by {falling:+.3}{unit} per K as the lubricant warms, through {tau}"
+                    "the {axis_name} bearings' drag heat (Palmgren, ∝ n^(5/3)) differs from the simulation's: {extra:+.3}{unit} at a steady 1000 rpm{at_top}, falling by {falling:+.3}{unit} per K as the lubricant warms, through {tau}{unsettled}"
                 )
             }
         }
@@ -3270,8 +3308,9 @@ pub fn explain(
             p.insert("current_step_A".into(), step);
             p.insert("step_share_of_current_difference".into(), explained);
             p.insert("per_A2".into(), g0);
+            let unsettled = steady_note(&mut p);
             format!(
-                "friction that flips with the direction of motion makes the real {axis_name} drive draw {:.3} A {} than simulated while it moves (a Coulomb step, from comparing the two recordings' currents); its I²R heat warms the {target} by {g0:.3e}{unit}/A², through {tau}",
+                "friction that flips with the direction of motion makes the real {axis_name} drive draw {:.3} A {} than simulated while it moves (a Coulomb step, from comparing the two recordings' currents); its I²R heat warms the {target} by {g0:.3e}{unit}/A², through {tau}{unsettled}",
                 step.abs(),
                 if step >= 0.0 { "more" } else { "less" }
             )
@@ -3279,8 +3318,9 @@ pub fn explain(
         Kind::Physics(Physics::CoulombReversal) if family.lagged => {
             p.insert("per_krpm".into(), g0);
             let at_top = at_top_speed(&mut p, &|krpm| g0 * krpm);
+            let unsettled = steady_note(&mut p);
             format!(
-                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state{at_top}, through {tau}",
+                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state{at_top}, through {tau}{unsettled}",
                 if g0 >= 0.0 { "lacks" } else { "overstates" },
                 g0.abs()
             )
@@ -3342,15 +3382,7 @@ pub fn explain(
             }
         }
     };
-    // Inertia gives a share, the coolant and a profile along the stroke what they did in
-    // this recording; the others give steady figures.
-    let unsettled = match family.kind {
-        Kind::Physics(Physics::ThermalInertia | Physics::Coolant | Physics::PositionDependent) => {
-            String::new()
-        }
-        _ => unsettled(&mut p),
-    };
-    (p, text + &coolant_note + &unsettled)
+    (p, text + &coolant_note)
 }
 
 /// The context of a simulation and a recording of `columns` on one grid of `rows` rows:
@@ -3558,10 +3590,11 @@ mod tests {
         );
     }
 
-    /// The room's correction on a one-hour recording: through a 20 min lag its gain per
-    /// kelvin is a figure the recording shows settled; through a lag longer than the hour it
-    /// is an extrapolation, and the sentence says how much of it the hour could show and what
-    /// the correction spans.
+    /// The room's correction on a one-hour recording (a room the simulation held at 20 °C,
+    /// the real one warming by 2 K): through a 20 min lag its gain per kelvin is a figure the
+    /// recording shows settled; through lags longer than the hour it is an extrapolation, and
+    /// the sentence says how much of it the hour could show (from the lags' own coefficients)
+    /// and what the correction spans. Thermal inertia gives a share, not a steady figure.
     #[test]
     fn steady_figures_through_a_lag_longer_than_the_recording_are_said_to_be_unsettled() {
         let columns = ["time_s", "ambient_C", "ref.X.nut_temp_C"];
@@ -3569,42 +3602,90 @@ mod tests {
             let t = f64::from(i);
             let room = 20.0 + 2.0 * (t / 3600.0);
             (
-                vec![t, room, 25.0],
+                vec![t, 20.0, 25.0],
                 vec![t, room, 25.0 + 0.5 * (t / 3600.0)],
             )
         });
+        let explained = |family: &Family, lags_min: &[f64], coefficients: &[f64]| {
+            let mut theta = family.grid.first().expect("a grid").clone();
+            theta[0] = 60.0 * lags_min[0];
+            if let (Some(ratio), Some(second)) = (theta.last_mut(), lags_min.get(1)) {
+                *ratio = second / lags_min[0];
+            }
+            let columns = (family.build)(&ctx, &theta);
+            assert_eq!(columns.len(), coefficients.len());
+            explain(family, &theta, coefficients, &columns, &ctx)
+        };
+        let reached_over_an_hour = |lags_min: &[f64], coefficients: &[f64]| {
+            let reached: f64 = lags_min
+                .iter()
+                .zip(coefficients)
+                .map(|(lag, c)| c * (1.0 - (-60.0 / lag).exp()))
+                .sum();
+            reached / coefficients.iter().sum::<f64>()
+        };
         let room = offered_family(
             &ctx,
             Physics::AmbientTemperature,
             "the room is offered where a room column is",
         );
-        // A member of the grid, at the time constant asked for (a refinement may fit one
-        // past the grid's, which ends at half the recording).
-        let sentence_at = |tau_s: f64| {
-            let mut theta = room.grid.first().expect("a grid").clone();
-            theta[0] = tau_s;
-            let columns = (room.build)(&ctx, &theta);
-            let coefficients = vec![0.8 / columns.len() as f64; columns.len()];
-            explain(&room, &theta, &coefficients, &columns, &ctx)
-        };
 
-        let (parameters, sentence) = sentence_at(1200.0);
+        let (parameters, sentence) = explained(&room, &[20.0], &[0.8]);
         assert!(!sentence.contains("steady figures"), "{sentence}");
         assert!(!parameters.contains_key("steady_share_reached"));
 
-        let (parameters, sentence) = sentence_at(4.0 * 3600.0);
-        let reached = parameters["steady_share_reached"];
-        let tau_s = 60.0 * parameters["tau_min"];
-        assert!((reached - (1.0 - (-3600.0 / tau_s).exp())).abs() < 1e-12);
-        assert!(reached < 0.3, "reached {reached}");
-        let span = parameters["effect_range"];
+        for (lags, coefficients) in [
+            (vec![240.0], vec![0.8]),
+            (vec![30.0, 360.0], vec![0.4, 0.4]),
+        ] {
+            let (parameters, sentence) = explained(&room, &lags, &coefficients);
+            let reached = parameters["steady_share_reached"];
+            let expected = reached_over_an_hour(&lags, &coefficients);
+            assert!(
+                (reached - expected).abs() < 1e-12,
+                "{reached} against {expected}"
+            );
+            let span = parameters["effect_range"];
+            assert!(span > 0.05, "the correction spans {span} °C");
+            assert!(
+                sentence.contains(&format!(
+                    "through τ = {:.0} min, longer than the 1.0 h recording; these are steady figures: held constant from the start, a cause reaches only about {:.0} % of them by the recording's end, and here the correction spans {span:.3} °C",
+                    parameters["tau_min"],
+                    100.0 * reached
+                )),
+                "{sentence}"
+            );
+        }
+        // A single lag over a quarter of its τ: 22 %; the two lags side by side: 51 %.
+        let (parameters, _) = explained(&room, &[240.0], &[0.8]);
+        assert!((parameters["steady_share_reached"] - 0.221).abs() < 1e-3);
+
+        // Lags pushing opposite ways, whose steady figure the recording shows with the other
+        // sign: no share, only the span.
+        let lags = [30.0, 360.0];
+        assert!(reached_over_an_hour(&lags, &[-0.4, 0.8]) < 0.0);
+        let (parameters, sentence) = explained(&room, &lags, &[-0.4, 0.8]);
+        assert!(!parameters.contains_key("steady_share_reached"));
         assert!(
             sentence.contains(&format!(
-                "a cause reaches only about {:.0} % of them by the recording's end, and here the correction spans {span:.3} °C",
-                100.0 * reached
+                "these are steady figures, which the recording does not reach: here the correction spans {:.3} °C",
+                parameters["effect_range"]
             )),
             "{sentence}"
         );
+
+        let inertia = offered_family(
+            &ctx,
+            Physics::ThermalInertia,
+            "thermal inertia is offered on a temperature",
+        );
+        let (parameters, sentence) = explained(&inertia, &[240.0], &[0.3]);
+        assert!(
+            sentence.contains("longer than the 1.0 h recording"),
+            "{sentence}"
+        );
+        assert!(!sentence.contains("steady figures"), "{sentence}");
+        assert!(!parameters.contains_key("steady_share_reached"));
     }
 
     #[test]

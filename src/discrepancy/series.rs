@@ -535,6 +535,11 @@ pub fn integrated_autocorrelation(values: &[f64], max_lag: usize) -> f64 {
 /// and does not scale.
 fn fft_radix2(re: &mut [f64], im: &mut [f64], inverse: bool) {
     let n = re.len();
+    debug_assert!(
+        n.is_power_of_two() || n == 0,
+        "a radix-2 transform of {n} values"
+    );
+    debug_assert_eq!(n, im.len(), "real and imaginary parts of one length");
     if n <= 1 {
         return;
     }
@@ -571,8 +576,7 @@ fn fft_radix2(re: &mut [f64], im: &mut [f64], inverse: bool) {
         for (block_re, block_im) in re.chunks_exact_mut(len).zip(im.chunks_exact_mut(len)) {
             let (a_re, b_re) = block_re.split_at_mut(half);
             let (a_im, b_im) = block_im.split_at_mut(half);
-            for k in 0..half {
-                let (c_re, c_im) = twiddles[k];
+            for (k, &(c_re, c_im)) in twiddles.iter().enumerate() {
                 let t_re = b_re[k] * c_re - b_im[k] * c_im;
                 let t_im = b_re[k] * c_im + b_im[k] * c_re;
                 b_re[k] = a_re[k] - t_re;
