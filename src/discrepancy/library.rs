@@ -942,7 +942,7 @@ fn coolant_share_of_rise(gain: f64, feedback: f64, speedup: f64) -> Option<f64> 
 /// 5.3 h run), and the sentence says so.
 fn tau_phrase(tau_s: f64, duration_s: f64) -> String {
     let tau_min = tau_s / 60.0;
-    if tau_s > duration_s && duration_s > 0.0 {
+    if beyond_the_recording(tau_s, duration_s) {
         format!(
             "τ = {tau_min:.0} min, longer than the {:.1} h recording",
             duration_s / 3600.0
@@ -950,6 +950,11 @@ fn tau_phrase(tau_s: f64, duration_s: f64) -> String {
     } else {
         format!("τ = {tau_min:.0} min")
     }
+}
+
+/// Whether a lag of `tau_s` is slower than a recording of `duration_s` is long.
+fn beyond_the_recording(tau_s: f64, duration_s: f64) -> bool {
+    tau_s > duration_s && duration_s > 0.0
 }
 
 /// What a correction whose lag is longer than the recording adds to its sentence, right after
@@ -970,9 +975,10 @@ fn unsettled_note(
     span: f64,
     unit: &str,
 ) -> Option<(Option<f64>, String)> {
-    if !(tau_s > duration_s && duration_s > 0.0) {
+    if !beyond_the_recording(tau_s, duration_s) {
         return None;
     }
+    // A gain of zero makes the share infinite or NaN, which the check below refuses.
     let gain: f64 = coefficients.iter().sum();
     let reached: f64 = coefficients
         .iter()
@@ -981,7 +987,7 @@ fn unsettled_note(
         .sum::<f64>()
         / gain;
     let spans = format!("here the correction spans {span:.3}{unit}");
-    Some(if reached > 0.0 && reached <= 1.0 && gain != 0.0 {
+    Some(if reached > 0.0 && reached <= 1.0 {
         let share = if reached < 0.01 {
             "under 1 %".to_string()
         } else {
@@ -2851,11 +2857,12 @@ pub fn explain(
     };
     let target = &ctx.target;
     let lags = family.lags(theta);
-    let driver = |d: usize| -> (f64, f64) {
-        let range = family.driver_columns(theta, d);
-        let slice = coefficients.get(range).unwrap_or(&[]);
-        lag_summary(slice, &lags)
+    let driver_coefficients = |d: usize| -> &[f64] {
+        coefficients
+            .get(family.driver_columns(theta, d))
+            .unwrap_or(&[])
     };
+    let driver = |d: usize| -> (f64, f64) { lag_summary(driver_coefficients(d), &lags) };
     let (g0, tau0) = driver(0);
     let tau_min = tau0 / 60.0;
     let tau = tau_phrase(tau0, ctx.duration_s);
@@ -2895,9 +2902,14 @@ pub fn explain(
     // Said right after the τ of a sentence that gives steady figures through a lag
     // ([`unsettled_note`]); each such sentence asks for it.
     let steady_note = |p: &mut BTreeMap<String, f64>| -> String {
-        let first = family.driver_columns(theta, 0);
-        let first = coefficients.get(first).unwrap_or(&[]);
-        match unsettled_note(tau0, first, &lags, ctx.duration_s, span, &unit) {
+        match unsettled_note(
+            tau0,
+            driver_coefficients(0),
+            &lags,
+            ctx.duration_s,
+            span,
+            &unit,
+        ) {
             Some((reached, words)) if family.lagged => {
                 if let Some(reached) = reached {
                     p.insert("steady_share_reached".into(), reached);
