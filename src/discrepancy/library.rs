@@ -595,12 +595,6 @@ impl Refinement {
 }
 
 impl Family {
-    /// Whether the member with nonlinear parameters `theta` uses any of the family's
-    /// [`Family::refinements`].
-    pub fn uses_refinement(&self, theta: &[f64]) -> bool {
-        self.refinements.iter().any(|r| r.used_by(theta))
-    }
-
     /// Whether the member with nonlinear parameters `theta` uses a refinement the selection
     /// is not offered.
     pub fn uses_refit_only_refinement(&self, theta: &[f64]) -> bool {
@@ -609,8 +603,14 @@ impl Family {
             .any(|r| !r.selectable && r.used_by(theta))
     }
 
+    /// Whether the family has refinements the selection is not offered, which the refit
+    /// after it may choose.
+    pub fn has_refit_only_refinements(&self) -> bool {
+        self.refinements.iter().any(|r| !r.selectable)
+    }
+
     /// Whether the selection is offered the member with nonlinear parameters `theta`: not a
-    /// refinement, and no lag slower than `longest_lag_s`
+    /// refit-only refinement, and no lag slower than `longest_lag_s`
     /// ([`SELECTION_LONGEST_LAG_SHARE`] of the recording).
     pub fn selectable(&self, theta: &[f64], longest_lag_s: f64) -> bool {
         !self.uses_refit_only_refinement(theta)
@@ -1445,7 +1445,7 @@ fn cooled_lag(ctx: &Context, driver: &[f64], tau: f64, theta: &[f64], start: Sta
 /// with the speed-up 0 alone or, where the coolant both flows and stops, also
 /// [`COOLANT_SPEEDUPS`] as the family's [`Family::refinements`] on `coolant_on`: the members
 /// whose lags run faster while it flows ([`cooled_lag`]), offered only to the refit after
-/// the selection.
+/// the selection unless the caller marks them selectable ([`coulomb_heat_family`]).
 fn coolant_refined_family(
     ctx: &Context,
     kind: Physics,
@@ -3027,23 +3027,25 @@ pub fn explain(
             } else {
                 0.0
             };
+            p.insert("coolant_speedup".into(), speedup);
             match coolant_share_of_rise(g0, feedback, speedup) {
                 Some(share) => {
                     p.insert("coolant_share_of_rise".into(), share);
+                    let faster =
+                        format!("its lags run {:.1} × faster while it flows", 1.0 + speedup);
                     if share >= 0.0 {
                         format!(
-                            "; flowing coolant takes {:.0} % off its steady rise",
+                            "; flowing coolant takes {:.0} % off its steady rise ({faster})",
                             100.0 * share
                         )
                     } else {
                         format!(
-                            "; flowing coolant adds {:.0} % to its steady rise",
+                            "; flowing coolant adds {:.0} % to its steady rise ({faster})",
                             -100.0 * share
                         )
                     }
                 }
                 None => {
-                    p.insert("coolant_speedup".into(), speedup);
                     format!(
                         "; it settles {:.1} × faster while the coolant (`{COOLANT}`) flows (what share of its rise the coolant takes is not resolved)",
                         1.0 + speedup
@@ -3412,9 +3414,15 @@ pub fn explain(
             let at_top = at_top_speed(&mut p, &|krpm| g0 * krpm);
             let unsettled = steady_note(&mut p);
             format!(
-                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state{at_top}, through {tau}{unsettled}",
+                "friction of constant force on the {axis_name} axis (Coulomb: seals, wipers, guideways, the nut) that the simulation {} heats the {target} in proportion to the speed either way: {:.3}{unit} per 1000 rpm at steady state{}{at_top}, through {tau}{unsettled}",
                 if g0 >= 0.0 { "lacks" } else { "overstates" },
-                g0.abs()
+                g0.abs(),
+                // Its lags are the dry ones: the coolant's share follows the sentence.
+                if coolant_speedup_of(family, theta).is_some() {
+                    " with the coolant off"
+                } else {
+                    ""
+                }
             )
         }
         Kind::Physics(Physics::CoulombReversal) => {
@@ -3860,7 +3868,9 @@ mod tests {
         assert!(family.within_limits(&plain, 2, warming));
         assert!(!family.within_limits(&held, 2, warming));
         assert!(family.within_limits(&held, 2, |_| Some(-0.5)));
-        assert!(family.uses_refinement(&held) && !family.uses_refinement(&plain));
+        assert!(
+            family.uses_refit_only_refinement(&held) && !family.uses_refit_only_refinement(&plain)
+        );
     }
 
     #[test]

@@ -627,7 +627,7 @@ fn analyse_with(
         .accepted
         .iter()
         .zip(&joint.active)
-        .filter(|((family, _), active)| **active && !families[*family].refinements.is_empty())
+        .filter(|((family, _), active)| **active && families[*family].has_refit_only_refinements())
         .map(|((family, _), _)| *family)
         .collect();
     refinable.sort_unstable();
@@ -1091,8 +1091,8 @@ impl FixedMembers {
 const JOINT_ROUNDS: usize = 3;
 
 /// How finely a member's parameter is refined, as a share of the span between its grid
-/// neighbours: 0.07 % of τ on the doubling grid of time constants, a thousandth of a sample
-/// on the delays' grid. A golden-section search took 16 rebuilds of the member to get there;
+/// neighbours (a coolant speed-up: of its log range): 0.07 % of τ on the doubling grid of
+/// time constants, a thousandth of a sample on the delays' grid. A golden-section search took 16 rebuilds of the member to get there;
 /// Brent's parabolas need fewer where the error is smooth (docs/performance.md: refining took
 /// 24 % of a 24 h report's CPU instead of 36 %).
 const REFINE_TOLERANCE: f64 = 5e-4;
@@ -1634,7 +1634,9 @@ impl Joint<'_> {
 
     /// Refines a member's first nonlinear parameter (τ on a log scale, a delay on a linear one)
     /// between its grid neighbours by a search (Brent's) of the in-sample error on top of
-    /// `base`; the grid value stays when the search finds nothing better.
+    /// `base`; the grid value stays when the search finds nothing better. Then, for a member
+    /// chosen by its coolant speed-up ([`library::selectable_coolant_speedup_index`]), the
+    /// speed-up ([`Joint::refine_coolant_speedup`]).
     fn refine_member(
         &self,
         index: usize,
@@ -1683,33 +1685,38 @@ impl Joint<'_> {
             .filter(|v| *v > current)
             .min_by(f64::total_cmp)
             .unwrap_or(current);
-        if lower == upper {
+        // A member chosen by its coolant speed-up has that to refine even where τ has no
+        // grid neighbours (a short recording's single τ).
+        let refined_speedup = speedup.filter(|i| theta.get(*i).is_some_and(|g| *g > 0.0));
+        if lower == upper && refined_speedup.is_none() {
             return theta.to_vec();
         }
         let base_columns: Vec<&[f64]> = base.iter().map(|c| c.as_slice()).collect();
         let base = NormalEquations::new(&base_columns, self.y);
-        let sse_at = |value: f64| -> f64 {
-            let mut candidate = theta.to_vec();
-            candidate[0] = value;
-            self.in_sample_sse(index, ctx, &candidate, &base)
-        };
-        // Time constants are searched on a log scale, delays on a linear one.
-        let to = |v: f64| if refine.log { v.abs().ln() } else { v };
-        let from = |u: f64| if refine.log { u.exp() } else { u };
-        let sign = if refine.log { current.signum() } else { 1.0 };
-        let (a, b) = (to(lower), to(upper));
-        let found = crate::fit::minimise::minimise_on_interval(
-            |u| sse_at(sign * from(u)),
-            a,
-            b,
-            REFINE_TOLERANCE * (b - a).abs(),
-        );
-        let (best, best_sse) = (sign * from(found.at), found.value);
         let mut out = theta.to_vec();
-        if best_sse <= sse_at(current) {
-            out[0] = best;
+        if lower != upper {
+            let sse_at = |value: f64| -> f64 {
+                let mut candidate = theta.to_vec();
+                candidate[0] = value;
+                self.in_sample_sse(index, ctx, &candidate, &base)
+            };
+            // Time constants are searched on a log scale, delays on a linear one.
+            let to = |v: f64| if refine.log { v.abs().ln() } else { v };
+            let from = |u: f64| if refine.log { u.exp() } else { u };
+            let sign = if refine.log { current.signum() } else { 1.0 };
+            let (a, b) = (to(lower), to(upper));
+            let found = crate::fit::minimise::minimise_on_interval(
+                |u| sse_at(sign * from(u)),
+                a,
+                b,
+                REFINE_TOLERANCE * (b - a).abs(),
+            );
+            let (best, best_sse) = (sign * from(found.at), found.value);
+            if best_sse <= sse_at(current) {
+                out[0] = best;
+            }
         }
-        if let Some(i) = speedup.filter(|i| out.get(*i).is_some_and(|g| *g > 0.0)) {
+        if let Some(i) = refined_speedup {
             out = self.refine_coolant_speedup(index, out, i, &base, ctx);
         }
         out
