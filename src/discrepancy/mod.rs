@@ -1092,9 +1092,9 @@ const JOINT_ROUNDS: usize = 3;
 
 /// How finely a member's parameter is refined, as a share of the span between its grid
 /// neighbours (a coolant speed-up: of its log range): 0.07 % of τ on the doubling grid of
-/// time constants, a thousandth of a sample on the delays' grid. A golden-section search took 16 rebuilds of the member to get there;
-/// Brent's parabolas need fewer where the error is smooth (docs/performance.md: refining took
-/// 24 % of a 24 h report's CPU instead of 36 %).
+/// time constants, a thousandth of a sample on the delays' grid. A golden-section search took
+/// 16 rebuilds of the member to get there; Brent's parabolas need fewer where the error is
+/// smooth (docs/performance.md: refining took 24 % of a 24 h report's CPU instead of 36 %).
 const REFINE_TOLERANCE: f64 = 5e-4;
 
 /// Grid members refined before a correction's member is chosen again in the joint refit.
@@ -1636,7 +1636,7 @@ impl Joint<'_> {
     /// between its grid neighbours by a search (Brent's) of the in-sample error on top of
     /// `base`; the grid value stays when the search finds nothing better. Then, for a member
     /// chosen by its coolant speed-up ([`library::selectable_coolant_speedup_index`]), the
-    /// speed-up ([`Joint::refine_coolant_speedup`]).
+    /// speed-up over [`library::COOLANT_SPEEDUP_RANGE`], on a log scale.
     fn refine_member(
         &self,
         index: usize,
@@ -1695,78 +1695,57 @@ impl Joint<'_> {
         let base = NormalEquations::new(&base_columns, self.y);
         let mut out = theta.to_vec();
         if lower != upper {
-            let sse_at = |value: f64| -> f64 {
-                let mut candidate = theta.to_vec();
-                candidate[0] = value;
-                self.in_sample_sse(index, ctx, &candidate, &base)
-            };
             // Time constants are searched on a log scale, delays on a linear one.
             let to = |v: f64| if refine.log { v.abs().ln() } else { v };
-            let from = |u: f64| if refine.log { u.exp() } else { u };
             let sign = if refine.log { current.signum() } else { 1.0 };
-            let (a, b) = (to(lower), to(upper));
-            let found = crate::fit::minimise::minimise_on_interval(
-                |u| sse_at(sign * from(u)),
-                a,
-                b,
-                REFINE_TOLERANCE * (b - a).abs(),
-            );
-            let (best, best_sse) = (sign * from(found.at), found.value);
-            if best_sse <= sse_at(current) {
-                out[0] = best;
-            }
+            let from = |u: f64| if refine.log { sign * u.exp() } else { u };
+            out = self.search_parameter(index, ctx, &base, out, 0, (to(lower), to(upper)), from);
         }
         if let Some(i) = refined_speedup {
-            out = self.refine_coolant_speedup(index, out, i, &base, ctx);
+            // How much faster a part sheds heat while the coolant flows is a property of the
+            // part (its coolant's conductance over its other paths'), not a grid value: on the
+            // independent check's nut (seed 10, true 0.83; a Python check with one lag), lags
+            // switched by 0.5 or 1 left 0.14 and 0.13 °C where 0.83 left 0.076 °C.
+            let (low, high) = library::COOLANT_SPEEDUP_RANGE;
+            out = self.search_parameter(index, ctx, &base, out, i, (low.ln(), high.ln()), f64::exp);
         }
         out
     }
 
-    /// Refines a member's coolant speed-up (index `at` of `theta`, [`library::COOLANT_SPEEDUPS`])
-    /// on a log scale over [`library::COOLANT_SPEEDUP_RANGE`] by the in-sample error on top of
-    /// `base`, its time constants held. How much faster a part sheds heat while the coolant
-    /// flows is a property of the part (its coolant's conductance over its other paths'), not
-    /// a grid value: on the independent check's nut (seed 10, true 0.83; a Python check with
-    /// one lag), lags switched by 0.5 or 1 left 0.14 and 0.13 °C where 0.83 left 0.076 °C.
-    fn refine_coolant_speedup(
+    /// `theta` with its parameter `at` replaced by the value that a search (Brent's) over
+    /// `interval`, mapped to the parameter by `from`, finds of least in-sample error on top of
+    /// `base`; unchanged when the search finds nothing better than its current value.
+    #[allow(clippy::too_many_arguments)]
+    fn search_parameter(
         &self,
         index: usize,
+        ctx: &Context,
+        base: &NormalEquations,
         theta: Vec<f64>,
         at: usize,
-        base: &NormalEquations,
-        ctx: &Context,
+        interval: (f64, f64),
+        from: impl Fn(f64) -> f64,
     ) -> Vec<f64> {
-        let sse_at = |speedup: f64| -> f64 {
+        let sse_at = |value: f64| -> f64 {
             let mut candidate = theta.clone();
-            candidate[at] = speedup;
-            self.in_sample_sse(index, ctx, &candidate, base)
+            candidate[at] = value;
+            let own = self.binned(index, ctx, &candidate);
+            let own: Vec<&[f64]> = own.iter().map(|(c, _)| c.as_slice()).collect();
+            base.fit_with(&own).map_or(f64::INFINITY, |(_, sse)| sse)
         };
-        let (low, high) = library::COOLANT_SPEEDUP_RANGE;
-        let (a, b) = (low.ln(), high.ln());
+        let (a, b) = interval;
         let found = crate::fit::minimise::minimise_on_interval(
-            |u| sse_at(u.exp()),
+            |u| sse_at(from(u)),
             a,
             b,
-            REFINE_TOLERANCE * (b - a),
+            REFINE_TOLERANCE * (b - a).abs(),
         );
+        let best = from(found.at);
         let mut out = theta.clone();
         if found.value <= sse_at(theta[at]) {
-            out[at] = found.at.exp();
+            out[at] = best;
         }
         out
-    }
-
-    /// The in-sample error of family `index`'s member `theta` on top of `base`.
-    fn in_sample_sse(
-        &self,
-        index: usize,
-        ctx: &Context,
-        theta: &[f64],
-        base: &NormalEquations,
-    ) -> f64 {
-        let own = self.binned(index, ctx, theta);
-        let own: Vec<&[f64]> = own.iter().map(|(c, _)| c.as_slice()).collect();
-        base.fit_with(&own).map_or(f64::INFINITY, |(_, sse)| sse)
     }
 }
 
