@@ -2,7 +2,7 @@
 # Reproduces docs/accuracy.md: calibrate on twin data (a DOE database + one experiment: a single
 # 8 h production shift recorded with reference sensors),
 # validate on a different seed and scenario with noise, and measure backlash on test runs from
-# 5 to 60 µm at two noise levels. Takes about a minute after the release build.
+# 5 to 60 µm at two noise levels. Takes about 3 minutes after the release build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-target/accuracy}

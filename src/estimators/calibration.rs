@@ -29,8 +29,9 @@ use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 use super::abnormality;
 use super::models::{
     AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
-    Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES, ElongationModel, HeatModel,
-    IDEAL_TORQUE_FEATURES, LinearModel, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S,
+    BED_LAG_TAUS_S, COOLANT_LAG_FEATURES, Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES,
+    ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES, LinearModel, STATOR_LAG_FEATURES,
+    STATOR_LAG_TAUS_S,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
@@ -1032,6 +1033,42 @@ fn accumulate(time: &[f64], input: &[f64], tau_s: f64) -> Vec<f64> {
         .collect()
 }
 
+/// A part's surroundings over a recording, as [`super::streaming::ThermalSurroundings`] holds
+/// them: the stator through each lag of [`STATOR_LAG_TAUS_S`], then (`with_coolant`) the
+/// coolant's on/off state through each lag of [`BED_LAG_TAUS_S`].
+fn surroundings_columns(
+    recording: &Recording,
+    stator: &str,
+    with_coolant: bool,
+    purpose: &str,
+) -> Result<Columns, CalibrationError> {
+    let time = recording.time();
+    let stator_lags = settled_lag_columns(
+        time,
+        recording.column_for(stator, purpose)?,
+        STATOR_LAG_TAUS_S,
+    );
+    let mut columns: Columns = STATOR_LAG_FEATURES
+        .iter()
+        .map(|name| name.to_string())
+        .zip(stator_lags)
+        .collect();
+    if with_coolant {
+        let coolant_lags = settled_lag_columns(
+            time,
+            recording.column_for(COOLANT, purpose)?,
+            BED_LAG_TAUS_S,
+        );
+        columns.extend(
+            COOLANT_LAG_FEATURES
+                .iter()
+                .map(|name| name.to_string())
+                .zip(coolant_lags),
+        );
+    }
+    Ok(columns)
+}
+
 /// What a heat-model fit is about.
 struct HeatFit<'a> {
     axis: AxisId,
@@ -1043,9 +1080,10 @@ struct HeatFit<'a> {
 }
 
 /// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator + c_H·H(τ), optionally with the load
-/// heat c_L·H_load(τ) and the churning heat c_C·H_churning(τ), and with the room c_room·T_room
-/// and the room through the lags of `AMBIENT_LAG_TAUS_S`; τ and the optional terms are chosen
-/// on the experiments (or by blocked cross-validation).
+/// heat c_L·H_load(τ) and the churning heat c_C·H_churning(τ), with the room c_room·T_room and
+/// the room through the lags of `AMBIENT_LAG_TAUS_S`, and with the part's surroundings (the
+/// stator's lags, then also the coolant's: [`surroundings_columns`]); τ and the optional terms
+/// are chosen on the experiments (or by blocked cross-validation).
 fn fit_heat_model(
     fit: HeatFit<'_>,
     database: &[Recording],
@@ -1061,6 +1099,19 @@ fn fit_heat_model(
     let db_inputs = inputs_of(database)?;
     let experiment_inputs = inputs_of(experiments)?;
     let stator_name = axis_column(fit.axis, Quantity::StatorTemp);
+    let has_coolant = database
+        .iter()
+        .chain(experiments)
+        .all(|r| r.try_column(COOLANT).is_some());
+    // The part's surroundings (the stator's and the coolant's lags) do not depend on τ.
+    let surroundings_of = |recordings: &[Recording]| {
+        recordings
+            .iter()
+            .map(|r| surroundings_columns(r, &stator_name, has_coolant, &estimate))
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let db_surroundings = surroundings_of(database)?;
+    let experiment_surroundings = surroundings_of(experiments)?;
     let mut best: Option<(f64, f64, Fitted)> = None;
     for &tau in HEAT_TAUS_S {
         let fitted = fit_best(
@@ -1070,9 +1121,11 @@ fn fit_heat_model(
             experiments,
             fit.target,
             &|side, index, r| {
-                let inputs = match side {
-                    Side::Database => &db_inputs[index],
-                    Side::Experiment => &experiment_inputs[index],
+                let (inputs, surroundings) = match side {
+                    Side::Database => (&db_inputs[index], &db_surroundings[index]),
+                    Side::Experiment => {
+                        (&experiment_inputs[index], &experiment_surroundings[index])
+                    }
                 };
                 let stator = r.column_for(&stator_name, &estimate)?.to_vec();
                 let accumulated = |input: fn(&HeatInputs) -> f64| {
@@ -1094,7 +1147,19 @@ fn fit_heat_model(
                         churning_heat.clone(),
                     ],
                 ] {
-                    candidates.extend(with_room_and_lag_variants(base, r, fit.has_ambient)?);
+                    let variants = with_room_and_lag_variants(base, r, fit.has_ambient)?;
+                    // The fullest variant again with the surroundings: the stator's lags, then
+                    // also the coolant's where it is recorded.
+                    let mut surrounded = variants.last().cloned().unwrap_or_default();
+                    candidates.extend(variants);
+                    let (stator_lags, coolant_lags) =
+                        surroundings.split_at(STATOR_LAG_FEATURES.len());
+                    surrounded.extend_from_slice(stator_lags);
+                    candidates.push(surrounded.clone());
+                    if !coolant_lags.is_empty() {
+                        surrounded.extend_from_slice(coolant_lags);
+                        candidates.push(surrounded);
+                    }
                 }
                 Ok(candidates)
             },
@@ -1710,6 +1775,109 @@ mod tests {
         assert_eq!(c.offset, 0.0);
         assert!(c.cv_rmse_offset.is_nan());
     }
+    /// An 8 h recording at 1 Hz of an X front bearing whose temperature is the room's plus 1.5 K
+    /// per krpm of drag heat accumulated over 20 min, less `cooling` K through the bed's 90 min
+    /// lag of the coolant, read with 0.02 K of noise; the speed and the coolant change in blocks of
+    /// 10–60 min that do not line up, and the stator follows the speed.
+    fn cooled_bearing_recording(cooling: f64, seed: u64) -> Recording {
+        let speed = axis_column(AxisId::X, Quantity::Speed);
+        let torque = axis_column(AxisId::X, Quantity::Torque);
+        let stator = axis_column(AxisId::X, Quantity::StatorTemp);
+        let target = reference_column(AxisId::X, "front_bearing_temp_C", None);
+        let names = vec![
+            "time_s".to_string(),
+            speed,
+            torque,
+            stator,
+            AMBIENT.to_string(),
+            COOLANT.to_string(),
+            target,
+        ];
+        let mut recording = Recording::new(format!("cooled-bearing-{seed}"), names).unwrap();
+        let mut draw = noise(seed);
+        let mut lengths = noise(seed + 1000);
+        let mut levels = noise(seed + 2000);
+        // A block of 10–60 min, and a speed level (the streams are about normal within ±6).
+        let mut block = move || 600 + ((lengths() + 6.0) / 12.0 * 3000.0) as usize;
+        let mut level = move || ((levels() + 6.0) / 12.0 * 4.0) as usize % 4;
+        let (mut speed_rpm, mut coolant) = (0.0, 0.0);
+        let (mut next_speed, mut next_coolant) = (0, 0);
+        let mut heat = HeatAccumulator::new(1200.0);
+        let mut stator_lag = HeatAccumulator::new(450.0);
+        let mut coolant_lags = SettledLags::new(BED_LAG_TAUS_S);
+        for i in 0..8 * 3600 {
+            let dt = if i == 0 { 0.0 } else { 1.0 };
+            if i == next_speed {
+                speed_rpm = [0.0, 400.0, 1500.0, 2500.0][level()];
+                next_speed = i + block();
+            }
+            if i == next_coolant {
+                coolant = if coolant == 0.0 { 1.0 } else { 0.0 };
+                next_coolant = i + block();
+            }
+            let drag = heat.update(speed_rpm / 1000.0, dt);
+            let stator_C = 20.0 + 4.0 * stator_lag.update(speed_rpm / 1000.0, dt) + 0.05 * draw();
+            let [_, coolant_90] = coolant_lags.update(coolant, dt);
+            let room_C = 20.0 + 0.5 * (i as f64 / 5000.0).sin();
+            let bearing_C = room_C + 1.5 * drag - cooling * coolant_90 + 0.02 * draw();
+            let torque_Nm = if speed_rpm > 0.0 { 0.6 } else { 0.0 };
+            recording
+                .push_row(&[
+                    i as f64, speed_rpm, torque_Nm, stator_C, room_C, coolant, bearing_C,
+                ])
+                .unwrap();
+        }
+        recording
+    }
+
+    /// A bearing that the coolant cools through the bed has that read by its calibrated model,
+    /// the coolant's lags taking off about as much as the truth; a bearing the coolant does not
+    /// reach gets no coolant term worth the name.
+    #[test]
+    fn a_bearing_the_coolant_cools_reads_the_coolant_through_the_beds_lags() {
+        let ratio = LinearModel::with_terms(
+            crate::estimators::models::RATIO_FEATURES,
+            &[1.0, 0.0, 0.0, 0.0],
+        );
+        let split = TorqueSplitEstimator::new(&ratio, &ratio).unwrap();
+        let target = reference_column(AxisId::X, "front_bearing_temp_C", None);
+        for (cooling, seed) in [(0.8, 3), (0.0, 4)] {
+            let database = cooled_bearing_recording(cooling, seed);
+            let (model, _) = fit_heat_model(
+                HeatFit {
+                    axis: AxisId::X,
+                    label: "front_bearing_temp",
+                    component: Component::FrontBearing,
+                    split: &split,
+                    target: &target,
+                    has_ambient: true,
+                },
+                std::slice::from_ref(&database),
+                &[],
+            )
+            .unwrap();
+            let terms = &model.temperature.terms;
+            let coolant_share: f64 = terms
+                .iter()
+                .zip(&model.temperature.coefficients)
+                .filter(|(term, _)| term.starts_with("coolant"))
+                .map(|(_, c)| c)
+                .sum();
+            assert!(
+                (coolant_share + cooling).abs() < 0.1,
+                "cooling {cooling} K: the coolant's lags take {coolant_share} K ({})",
+                model.temperature.equation
+            );
+            if cooling > 0.0 {
+                assert!(
+                    terms.iter().any(|t| t == "coolant_lag_90min"),
+                    "{}",
+                    model.temperature.equation
+                );
+            }
+        }
+    }
+
     /// A recording of `y = 1 + 2·x1 + slope_x2·x2 + noise` at 1 Hz with two slow drivers.
     fn linear_recording(rows: usize, slope_x2: f64, seed: u64) -> Recording {
         let names = ["time_s", "x1", "x2", "y"].map(String::from).to_vec();

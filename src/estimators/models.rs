@@ -38,9 +38,13 @@ pub const RATIO_FEATURES: &[&str] = &["const", "torque", "torque^2", "torque^3"]
 /// Bearing and nut temperature (Eqs. 9–12): constant, stator (the initial temperature),
 /// room, accumulated drag heat (∝ speed: the preload drag torque is nearly constant),
 /// accumulated load heat (∝ speed × the component's estimated torque), accumulated churning
-/// heat (∝ |n|^(5/3): Palmgren's load-free bearing torque grows as (ν·n)^(2/3)), and the room
-/// through the slow lags of the machine's mass ([`AMBIENT_LAG_FEATURES`]). A fitted model
-/// uses a subset.
+/// heat (∝ |n|^(5/3): Palmgren's load-free bearing torque grows as (ν·n)^(2/3)), the room
+/// through the slow lags of the machine's mass ([`AMBIENT_LAG_FEATURES`]) — and, as
+/// calibration may choose, the part's surroundings: the stator through the lags of
+/// [`STATOR_LAG_TAUS_S`] (the motor's heat reaches a bearing late, through the flange, the bed
+/// and the screw) and the coolant's on/off state through the lags of [`BED_LAG_TAUS_S`] (the
+/// coolant washes the bed the bearings sit on, which passes its cooling on slowly). A fitted
+/// model uses a subset.
 pub const HEAT_FEATURES: &[&str] = &[
     "const",
     "stator",
@@ -51,7 +55,15 @@ pub const HEAT_FEATURES: &[&str] = &[
     "ambient_lag_30min",
     "ambient_lag_90min",
     "ambient_lag_270min",
+    "stator_lag_5min",
+    "stator_lag_15min",
+    "stator_lag_45min",
+    "coolant_lag_30min",
+    "coolant_lag_90min",
 ];
+/// The coolant features of [`HEAT_FEATURES`] and [`STRAIGHTNESS_FEATURES`]: its on/off state
+/// through each lag of [`BED_LAG_TAUS_S`].
+pub const COOLANT_LAG_FEATURES: [&str; 2] = ["coolant_lag_30min", "coolant_lag_90min"];
 /// The room temperature through first-order lags of these time constants: the bed, the base
 /// and the housings follow the room slowly, and a component bolted to them with it.
 pub const AMBIENT_LAG_TAUS_S: [f64; 3] = [1800.0, 5400.0, 16200.0];
@@ -463,16 +475,24 @@ impl BoundModel {
 mod tests {
     use super::*;
 
-    /// The estimators pass the room lags as the last three features of the heat vector and,
-    /// followed by the bed's state, of the straightness vector, in the order of
-    /// `AMBIENT_LAG_TAUS_S` and `BED_LAG_TAUS_S`; the names there must be the same, or a fitted
-    /// lag would bind to the wrong value.
+    /// The estimators pass the room, stator and coolant lags as the last eight features of
+    /// the heat vector and the room lags, followed by the bed's state, as the last of the
+    /// straightness vector, in the order of `AMBIENT_LAG_TAUS_S`, `STATOR_LAG_TAUS_S` and
+    /// `BED_LAG_TAUS_S`; the names there must be the same, or a fitted lag would bind to the
+    /// wrong value.
     #[test]
     fn lag_features_sit_where_the_estimators_put_them() {
+        let heat_lags = HEAT_FEATURES.len() - 8;
         assert_eq!(
-            HEAT_FEATURES[HEAT_FEATURES.len() - 3..],
+            HEAT_FEATURES[heat_lags..heat_lags + 3],
             AMBIENT_LAG_FEATURES
         );
+        assert_eq!(
+            HEAT_FEATURES[heat_lags + 3..heat_lags + 6],
+            STATOR_LAG_FEATURES
+        );
+        assert_eq!(HEAT_FEATURES[heat_lags + 6..], COOLANT_LAG_FEATURES);
+        assert_eq!(BED_LAG_FEATURES[5..], COOLANT_LAG_FEATURES);
         let bed = STRAIGHTNESS_FEATURES.len() - BED_LAG_FEATURES.len();
         assert_eq!(STRAIGHTNESS_FEATURES[bed..], BED_LAG_FEATURES);
         assert_eq!(STRAIGHTNESS_FEATURES[bed - 3..bed], AMBIENT_LAG_FEATURES);

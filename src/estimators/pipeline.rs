@@ -7,11 +7,12 @@ use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
-use super::models::{AMBIENT_LAG_FEATURES, AxisModels, BED_LAG_TAUS_S};
+use super::models::{AMBIENT_LAG_FEATURES, AxisModels, BED_LAG_TAUS_S, STATOR_LAG_TAUS_S};
 use super::streaming::{
     BedLags, ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator,
     RoomLags, SettledLags, SpeedHeat, SpindleElongationEstimator, StraightnessEstimator,
-    StraightnessInputs, TorqueSplit, TorqueSplitEstimator, minimum_zone_straightness,
+    StraightnessInputs, ThermalSurroundings, TorqueSplit, TorqueSplitEstimator,
+    minimum_zone_straightness,
 };
 
 /// Why a pipeline could not be built.
@@ -161,6 +162,8 @@ struct FeedAxisPipeline {
     straightness_v: Option<StraightnessEstimator>,
     abnormality: Option<MotorAbnormalityEstimator>,
     stroke_mm: f64,
+    /// The stator through the lags the flange and component models may read.
+    stator_lags: SettledLags<3>,
     /// The bed's slow state the straightness models may read.
     bed: BedLags,
     /// What the straightness models read this frame (kept for calibration).
@@ -184,7 +187,8 @@ pub struct EstimatorPipeline {
     coolant: Option<usize>,
     /// The room through the lags the heat and straightness models may read.
     room: RoomLags,
-    /// The coolant's on/off state through the lags the straightness models may read.
+    /// The coolant's on/off state through the lags the component and straightness models may
+    /// read.
     coolant_lags: SettledLags<2>,
     cut_depth: Option<usize>,
     previous_time: Option<f64>,
@@ -271,6 +275,9 @@ impl EstimatorPipeline {
                                 .map_err(model_err(what))
                         }
                     };
+                    let front = thermal(&models.front_bearing_temp, "front bearing temperature")?;
+                    let back = thermal(&models.back_bearing_temp, "back bearing temperature")?;
+                    let nut = thermal(&models.nut_temp, "nut temperature")?;
                     let straightness_h =
                         straightness(&models.straightness_h, "horizontal straightness")?;
                     let straightness_v =
@@ -283,6 +290,22 @@ impl EstimatorPipeline {
                     };
                     if reads("coolant") && coolant.is_none() {
                         unmet.push((COOLANT.into(), format!("the {axis} straightness models")));
+                    }
+                    for (estimator, what) in [
+                        (&front, "front bearing"),
+                        (&back, "back bearing"),
+                        (&nut, "nut"),
+                    ] {
+                        if coolant.is_none()
+                            && estimator
+                                .as_ref()
+                                .is_some_and(|e| e.uses_features_starting_with("coolant"))
+                        {
+                            unmet.push((
+                                COOLANT.into(),
+                                format!("the {axis} {what} temperature model"),
+                            ));
+                        }
                     }
                     if reads("nut") && models.nut_temp.is_none() {
                         return Err(PipelineError::Model {
@@ -303,9 +326,9 @@ impl EstimatorPipeline {
                                 MotorFlangeEstimator::new(m).map_err(model_err("motor flange"))
                             })
                             .transpose()?,
-                        front: thermal(&models.front_bearing_temp, "front bearing temperature")?,
-                        back: thermal(&models.back_bearing_temp, "back bearing temperature")?,
-                        nut: thermal(&models.nut_temp, "nut temperature")?,
+                        front,
+                        back,
+                        nut,
                         split,
                         straightness_h,
                         straightness_v,
@@ -314,6 +337,7 @@ impl EstimatorPipeline {
                             .screw
                             .as_ref()
                             .map_or(f64::NAN, |s| s.stroke_mm),
+                        stator_lags: SettledLags::new(STATOR_LAG_TAUS_S),
                         bed: BedLags::default(),
                         thermal_state: StraightnessInputs::default(),
                         estimate: {
@@ -435,22 +459,28 @@ impl EstimatorPipeline {
                 axis.estimate.abnormality = abnormality.update(&sample(&c, x));
             }
             let speed = SpeedHeat::of(frame[c.speed]);
+            let surroundings = ThermalSurroundings {
+                stator_C: stator,
+                stator_lags_C: axis.stator_lags.update(stator, dt),
+                room,
+                coolant_lags,
+            };
             let e = &mut axis.estimate;
-            if let Some(flange) = &mut axis.flange {
-                e.motor_flange_C = flange.update(stator, &room, dt);
+            if let Some(flange) = &axis.flange {
+                e.motor_flange_C = flange.update(&surroundings);
             }
             if let Some(split) = &axis.split {
                 e.split = split.update(torque);
                 if let Some(front) = &mut axis.front {
                     e.front_bearing_C =
-                        front.update(e.split.front_bearing_Nm, &speed, stator, &room, dt);
+                        front.update(e.split.front_bearing_Nm, &speed, &surroundings, dt);
                 }
                 if let Some(back) = &mut axis.back {
                     e.back_bearing_C =
-                        back.update(e.split.back_bearing_Nm, &speed, stator, &room, dt);
+                        back.update(e.split.back_bearing_Nm, &speed, &surroundings, dt);
                 }
                 if let Some(nut) = &mut axis.nut {
-                    e.nut_C = nut.update(e.split.nut_Nm, &speed, stator, &room, dt);
+                    e.nut_C = nut.update(e.split.nut_Nm, &speed, &surroundings, dt);
                 }
             }
             {
@@ -734,4 +764,101 @@ fn uses_ambient(models: &AxisModels) -> bool {
             .abnormality
             .as_ref()
             .is_some_and(MotorAbnormalityEstimator::uses_ambient)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimators::models::LinearModel;
+    use crate::signal::Recording;
+    use crate::sim::{ScenarioKind, TwinConfig, simulate};
+
+    /// The twin's profile with the X front bearing's temperature read by `terms` alone.
+    fn profile_with_front_bearing(terms: &[&str], coefficients: &[f64]) -> MachineProfile {
+        let mut profile = MachineProfile::from_toml(
+            include_str!("../../assets/it25-twin.toml"),
+            "it25-twin.toml",
+        )
+        .unwrap();
+        let calibration = profile.calibration.as_mut().unwrap();
+        let front = calibration
+            .axes
+            .get_mut(&AxisId::X)
+            .and_then(|m| m.front_bearing_temp.as_mut())
+            .unwrap();
+        front.temperature = LinearModel::with_terms(terms, coefficients);
+        profile
+    }
+
+    fn short_recording() -> Recording {
+        simulate(TwinConfig::new(ScenarioKind::Production, Some(0.02), 1)).unwrap()
+    }
+
+    /// A bearing whose model reads the stator's 15 min lag and the coolant's 30 min lag sees
+    /// both start settled at their first readings and follow a step as first-order lags do.
+    #[test]
+    fn a_bearing_reads_the_stator_and_the_coolant_through_the_axis_lags() {
+        let profile = profile_with_front_bearing(
+            &["const", "stator_lag_15min", "coolant_lag_30min"],
+            &[1.0, 0.5, 2.0],
+        );
+        let recording = short_recording();
+        let schema = recording.schema();
+        let stator = schema
+            .index_of(&axis_column(AxisId::X, Quantity::StatorTemp))
+            .unwrap();
+        let coolant = schema.index_of(COOLANT).unwrap();
+        let mut pipeline = EstimatorPipeline::new(&profile, schema).unwrap();
+        let mut frame = Vec::new();
+        recording.row_into(0, &mut frame);
+        let front = |p: &EstimatorPipeline| p.feed_axis(AxisId::X).unwrap().front_bearing_C;
+        frame[0] = 0.0;
+        frame[stator] = 20.0;
+        frame[coolant] = 0.0;
+        pipeline.update(&frame);
+        assert!((front(&pipeline) - (1.0 + 0.5 * 20.0)).abs() < 1e-12);
+        for second in 1..=900 {
+            frame[0] = second as f64;
+            frame[stator] = 30.0;
+            frame[coolant] = 1.0;
+            pipeline.update(&frame);
+        }
+        let stator_lag = 30.0 - 10.0 * (-1.0f64).exp();
+        let coolant_lag = 1.0 - (-0.5f64).exp();
+        let expected = 1.0 + 0.5 * stator_lag + 2.0 * coolant_lag;
+        assert!(
+            (front(&pipeline) - expected).abs() < 1e-9,
+            "{} against {expected}",
+            front(&pipeline)
+        );
+    }
+
+    /// Frames without the coolant column are refused by a profile whose bearing model reads
+    /// the coolant, and the error names that model beside the others that read it.
+    #[test]
+    fn a_bearing_model_that_reads_the_coolant_refuses_frames_without_it() {
+        let profile = profile_with_front_bearing(&["const", "coolant_lag_90min"], &[20.0, 1.0]);
+        let recording = short_recording();
+        let names: Vec<String> = recording
+            .schema()
+            .names()
+            .iter()
+            .filter(|name| name.as_str() != COOLANT)
+            .cloned()
+            .collect();
+        let schema = Schema::new(names, "no-coolant.csv").unwrap();
+        let Err(error) = EstimatorPipeline::new(&profile, &schema) else {
+            panic!("frames without the coolant were accepted");
+        };
+        let message = error.to_string();
+        assert!(
+            message.contains(COOLANT) && message.contains("X front bearing temperature model"),
+            "{message}"
+        );
+        let reads_nothing = profile_with_front_bearing(&["const", "stator"], &[1.0, 1.0]);
+        let Err(error) = EstimatorPipeline::new(&reads_nothing, &schema) else {
+            panic!("the straightness and elongation still read the coolant");
+        };
+        assert!(!error.to_string().contains("front bearing"), "{error}");
+    }
 }

@@ -7,8 +7,7 @@
 
 use super::models::{
     AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
-    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STATOR_LAG_TAUS_S,
-    STRAIGHTNESS_FEATURES,
+    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
 };
 
 /// rpm → rad/s.
@@ -173,13 +172,26 @@ impl BedLags {
     }
 }
 
+/// What a feed axis's thermal models read besides their own heat, taken once per axis and
+/// frame so that the flange and every component share the same lags.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermalSurroundings {
+    /// The axis's stator temperature, °C.
+    pub stator_C: f64,
+    /// The stator through the lags of [`STATOR_LAG_TAUS_S`](super::models::STATOR_LAG_TAUS_S), °C (settled at its first reading).
+    pub stator_lags_C: [f64; 3],
+    /// The room now and through its lags.
+    pub room: Room,
+    /// The coolant's on/off state (0–1) through the lags of [`BED_LAG_TAUS_S`] (NaN when the
+    /// recording has no coolant column).
+    pub coolant_lags: [f64; 2],
+}
+
 /// Motor flange temperature from the stator temperature (Eq. 7), and, where the model reads
-/// them, the stator through the lags of [`STATOR_LAG_TAUS_S`] (settled at the first stator
-/// reading) and the room through its lags.
+/// them, the stator through the lags of [`STATOR_LAG_TAUS_S`](super::models::STATOR_LAG_TAUS_S) and the room through its lags.
 #[derive(Debug, Clone)]
 pub struct MotorFlangeEstimator {
     model: BoundModel,
-    stator_lags: SettledLags<3>,
 }
 
 impl MotorFlangeEstimator {
@@ -187,24 +199,24 @@ impl MotorFlangeEstimator {
     pub fn new(model: &LinearModel) -> Result<Self, String> {
         Ok(MotorFlangeEstimator {
             model: BoundModel::bind(model, FLANGE_FEATURES)?,
-            stator_lags: SettledLags::new(STATOR_LAG_TAUS_S),
         })
     }
 
-    /// °C from one frame's stator temperature over `dt` seconds and the room.
+    /// °C from one frame's surroundings (the flange has no heat of its own).
     #[inline]
-    pub fn update(&mut self, stator_C: f64, room: &Room, dt: f64) -> f64 {
-        let lags = self.stator_lags.update(stator_C, dt);
+    pub fn update(&self, s: &ThermalSurroundings) -> f64 {
+        let [stator_5, stator_15, stator_45] = s.stator_lags_C;
+        let [room_30, room_90, room_270] = s.room.lags_C;
         self.model.eval(&[
             1.0,
-            stator_C,
-            room.ambient_C,
-            lags[0],
-            lags[1],
-            lags[2],
-            room.lags_C[0],
-            room.lags_C[1],
-            room.lags_C[2],
+            s.stator_C,
+            s.room.ambient_C,
+            stator_5,
+            stator_15,
+            stator_45,
+            room_30,
+            room_90,
+            room_270,
         ])
     }
 }
@@ -290,23 +302,46 @@ impl ComponentThermalEstimator {
     }
 
     /// °C after one sample, from the component's torque, the axis's sampled speed (as
-    /// [`SpeedHeat`], computed once per axis and frame), the stator temperature and the room.
+    /// [`SpeedHeat`], computed once per axis and frame) and the axis's surroundings.
     #[inline]
     pub fn update(
         &mut self,
         torque_Nm: f64,
         speed: &SpeedHeat,
-        stator_C: f64,
-        room: &Room,
+        surroundings: &ThermalSurroundings,
         dt: f64,
     ) -> f64 {
         let inputs = heat_inputs(torque_Nm, speed);
         let h = self.heat.update(inputs.drag, dt);
         let l = self.load_heat.update(inputs.load, dt);
         let c = self.churning_heat.update(inputs.churning, dt);
-        let [lag1, lag2, lag3] = room.lags_C;
+        let s = surroundings;
+        let [room_30, room_90, room_270] = s.room.lags_C;
+        let [stator_5, stator_15, stator_45] = s.stator_lags_C;
+        let [coolant_30, coolant_90] = s.coolant_lags;
+        self.model.eval(&[
+            1.0,
+            s.stator_C,
+            s.room.ambient_C,
+            h,
+            l,
+            c,
+            room_30,
+            room_90,
+            room_270,
+            stator_5,
+            stator_15,
+            stator_45,
+            coolant_30,
+            coolant_90,
+        ])
+    }
+
+    /// True if the model reads a feature whose name starts with `prefix` (to check that the
+    /// recording has the signals it needs).
+    pub fn uses_features_starting_with(&self, prefix: &str) -> bool {
         self.model
-            .eval(&[1.0, stator_C, room.ambient_C, h, l, c, lag1, lag2, lag3])
+            .uses_features_starting_with(HEAT_FEATURES, prefix)
     }
 
     /// The accumulated drag heat.
@@ -703,6 +738,7 @@ impl SpindleElongationEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimators::models::STATOR_LAG_TAUS_S;
 
     #[test]
     fn minimum_zone_of_a_straight_line_is_zero_and_of_a_bow_is_its_sag() {
@@ -762,13 +798,20 @@ mod tests {
     fn the_motor_flange_follows_the_stator_through_its_lag() {
         let model =
             LinearModel::with_terms(&["const", "stator", "stator_lag_15min"], &[1.0, 0.25, 0.5]);
-        let mut flange = MotorFlangeEstimator::new(&model).unwrap();
+        let flange = MotorFlangeEstimator::new(&model).unwrap();
         let mut room = RoomLags::default();
-        let first = flange.update(20.0, &room.update(20.0, 0.0), 0.0);
+        let mut stator_lags = SettledLags::new(STATOR_LAG_TAUS_S);
+        let mut at = |stator_C: f64, dt: f64| ThermalSurroundings {
+            stator_C,
+            stator_lags_C: stator_lags.update(stator_C, dt),
+            room: room.update(20.0, dt),
+            coolant_lags: [f64::NAN; 2],
+        };
+        let first = flange.update(&at(20.0, 0.0));
         assert!((first - (1.0 + 0.25 * 20.0 + 0.5 * 20.0)).abs() < 1e-12);
         let mut last = first;
         for _ in 0..900 {
-            last = flange.update(30.0, &room.update(20.0, 1.0), 1.0);
+            last = flange.update(&at(30.0, 1.0));
         }
         let lag = 30.0 - 10.0 * (-1.0f64).exp();
         assert!(
