@@ -16,6 +16,7 @@
 //! - [`compensation`]: approved, bounded, verified and audited compensation writes.
 //! - [`discrepancy`]: sim-vs-real analysis: locate the mismatch, name the missing physics, model
 //!   it and show the fit improve out of sample.
+//! - [`parallel`]: a map over a few scoped threads, shared by calibration and discrepancy work.
 //! - [`ui`]: the HMI (eframe/egui): session worker, decimated history, view models, panels.
 
 pub mod compensation;
@@ -23,6 +24,7 @@ pub mod discrepancy;
 pub mod estimators;
 pub mod fit;
 pub mod link;
+pub mod parallel;
 pub mod profile;
 pub mod signal;
 pub mod sim;

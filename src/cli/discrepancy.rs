@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use servosight::discrepancy::series::join_or_resume;
 use servosight::discrepancy::{Options, RowBudget, analyse};
+use servosight::parallel::join_or_resume;
 use servosight::signal::{Recording, RecordingError, RecordingReader};
 use servosight::ui::export_png::render_discrepancy;
 use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest};

@@ -56,6 +56,7 @@ pub use report::{
 };
 
 use crate::fit::autocorrelation::white_noise_from_differences;
+use crate::parallel::{join_or_resume, parallel_map};
 use align::Aligned;
 use cv::{Blocks, ModelGram, NormalEquations, TargetProducts, TargetStats, least_squares};
 use library::{Context, Family, Kind, WindingCause, families};
@@ -539,7 +540,7 @@ fn analyse_with(
     // hears rise as the fractions do.
     let done = Mutex::new(0_usize);
     let every = (grid.len() / 25).max(1);
-    let built = series::parallel_map(&grid, |&(index, theta)| {
+    let built = parallel_map(&grid, |&(index, theta)| {
         if watch.stopped() {
             return BinnedMember::default();
         }
@@ -579,7 +580,7 @@ fn analyse_with(
     }
     let blocks = Blocks::new(y_binned.len(), options.folds, options.blocks_per_fold);
     let highpass_window = (y_binned.len() / 256).max(5);
-    let mut views = series::parallel_map(&[false, true], |&high| {
+    let mut views = parallel_map(&[false, true], |&high| {
         if high {
             select::View::highpassed(&store, highpass_window)
         } else {
@@ -894,7 +895,7 @@ fn analyse_with(
         let correlation =
             scope.spawn(|| integrated_autocorrelation(&cv_residual, (n / 10).clamp(2, 20_000)));
         let located = localise::localise(&ctx.time, &mismatch, &cv_residual, &conditions);
-        (located, series::join_or_resume(correlation))
+        (located, join_or_resume(correlation))
     });
     let noise_floor = NoiseFloor {
         rms: series::rms(&cv_residual),
@@ -1501,7 +1502,7 @@ impl Joint<'_> {
                 _ => f64::INFINITY,
             }
         };
-        let scored = series::parallel_map(&grid, score);
+        let scored = parallel_map(&grid, score);
         let mut ranked: Vec<(Vec<f64>, f64)> = grid
             .into_iter()
             .zip(scored)
@@ -1516,7 +1517,7 @@ impl Joint<'_> {
             .take(RESELECT_REFINED)
             .map(|(theta, _)| theta.clone())
             .collect();
-        let refined = series::parallel_map(&contenders, |theta| {
+        let refined = parallel_map(&contenders, |theta| {
             let theta = self.refine_member(family, theta, others, ctx);
             let error = score(&theta);
             (theta, error)

@@ -13,10 +13,9 @@ use rand::rngs::StdRng;
 
 use super::cv::{Blocks, ModelGram, TargetStats, least_squares};
 use super::library::{Family, Kind};
-use super::series::{
-    SurrogateSpectrum, joined, mean, moving_average, parallel_map, std_dev, worker_threads,
-};
+use super::series::{SurrogateSpectrum, mean, moving_average, std_dev};
 use super::{DiscrepancyError, Options, Watch};
+use crate::parallel::{joined, parallel_map, worker_threads};
 
 /// One candidate member: a family at one point of its parameter grid.
 #[derive(Debug, Clone)]

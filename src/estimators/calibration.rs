@@ -38,6 +38,7 @@ use super::streaming::{
     ElongationFeatures, ElongationInputs, HeatAccumulator, HeatInputs, RoomLags, SettledLags,
     SpeedHeat, StraightnessInputs, TorqueSplitEstimator, heat_inputs,
 };
+use crate::parallel::parallel_map;
 
 /// Candidate heat-accumulation time constants, s.
 const HEAT_TAUS_S: &[f64] = &[300.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
@@ -405,30 +406,38 @@ pub fn calibrate(
                 .chain(&estimated_experiments)
                 .flatten()
                 .all(|i| i.nut_C.is_finite());
+        // Every (node, direction) is a fit of its own; they run side by side and are kept in
+        // node order, horizontal before vertical.
+        let fits: Vec<(usize, &str)> = (1..=nodes).flat_map(|k| [(k, "h"), (k, "v")]).collect();
+        let fitted = parallel_map(&fits, |&(k, hv)| {
+            let target = reference_column(axis, &format!("straightness_{hv}_um"), Some(k));
+            let label = format!("{axis}.straightness_{hv}#{k}");
+            let symbol = format!("δ_{}{k}", hv.to_uppercase());
+            fit_best(
+                &label,
+                &symbol,
+                database,
+                experiments,
+                &target,
+                &|side, index, r| {
+                    let inputs = match side {
+                        Side::Database => &estimated[index],
+                        Side::Experiment => &estimated_experiments[index],
+                    };
+                    straightness_candidates(inputs, r, has_ambient, has_bed_state)
+                },
+                Scoring::Absolute,
+            )
+        });
         let (mut h, mut v) = (Vec::new(), Vec::new());
-        for k in 1..=nodes {
-            for (hv, out) in [("h", &mut h), ("v", &mut v)] {
-                let target = reference_column(axis, &format!("straightness_{hv}_um"), Some(k));
-                let label = format!("{axis}.straightness_{hv}#{k}");
-                let symbol = format!("δ_{}{k}", hv.to_uppercase());
-                let fitted = fit_best(
-                    &label,
-                    &symbol,
-                    database,
-                    experiments,
-                    &target,
-                    &|side, index, r| {
-                        let inputs = match side {
-                            Side::Database => &estimated[index],
-                            Side::Experiment => &estimated_experiments[index],
-                        };
-                        straightness_candidates(inputs, r, has_ambient, has_bed_state)
-                    },
-                    Scoring::Absolute,
-                )?;
-                out.push(fitted.model);
-                report.models.push(fitted.report);
+        for (&(_, hv), fitted) in fits.iter().zip(fitted) {
+            let fitted = fitted?;
+            if hv == "h" {
+                h.push(fitted.model)
+            } else {
+                v.push(fitted.model)
             }
+            report.models.push(fitted.report);
         }
         let models = calibration.axes.entry(axis).or_default();
         models.straightness_h = h;
@@ -1112,9 +1121,9 @@ fn fit_heat_model(
     };
     let db_surroundings = surroundings_of(database)?;
     let experiment_surroundings = surroundings_of(experiments)?;
-    let mut best: Option<(f64, f64, Fitted)> = None;
-    for &tau in HEAT_TAUS_S {
-        let fitted = fit_best(
+    // Each τ is a fit of its own; they run side by side, and the best is chosen in τ's order.
+    let per_tau = parallel_map(HEAT_TAUS_S, |&tau| {
+        fit_best(
             &estimate,
             "T",
             database,
@@ -1164,7 +1173,11 @@ fn fit_heat_model(
                 Ok(candidates)
             },
             Scoring::Absolute,
-        )?;
+        )
+    });
+    let mut best: Option<(f64, f64, Fitted)> = None;
+    for (&tau, fitted) in HEAT_TAUS_S.iter().zip(per_tau) {
+        let fitted = fitted?;
         let score = fitted.report.selection_r2;
         if best.as_ref().is_none_or(|(b, _, _)| score > *b + 1e-4) {
             best = Some((score, tau, fitted));
