@@ -3,7 +3,7 @@
 # Calibrates on several DOE databases (different seeds, 48 h each) with the same one-shift
 # experiment (seed 2), validates each calibration on three production days no calibration saw
 # (seeds 7, 8, 9; 10 h, default noise), and prints per estimate the mean, the worst and the
-# best R² over every (database, day) pair. Takes about 7 minutes after the release build.
+# best R² over every (database, day) pair. Takes about 5 minutes after the release build.
 #
 #     bash scripts/accuracy_seeds.sh [OUT_DIR] [DATABASE_SEEDS...]   (default seeds: 1 3 4 5)
 set -euo pipefail
