@@ -552,26 +552,10 @@ fn estimate_names_the_coolant_column_and_every_model_that_needs_it() {
         "r.csv",
         &["--scenario", "production", "--hours", "0.05"],
     );
-    let text = std::fs::read_to_string(&rec).unwrap();
-    let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
-    let drop = header.split(',').position(|c| c == "coolant_on").unwrap();
-    let without: String = text
-        .lines()
-        .map(|line| {
-            if line.starts_with('#') {
-                return format!("{line}\n");
-            }
-            let cells: Vec<&str> = line
-                .split(',')
-                .enumerate()
-                .filter(|(i, _)| *i != drop)
-                .map(|(_, c)| c)
-                .collect();
-            format!("{}\n", cells.join(","))
-        })
-        .collect();
     let stripped = dir.path().join("no-coolant.csv");
-    std::fs::write(&stripped, without).unwrap();
+    rewrite_columns(&rec, &stripped, |name, value| {
+        (name != "coolant_on").then(|| value.to_string())
+    });
     let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
     let ok = servosight(&[
         "estimate",
@@ -590,12 +574,104 @@ fn estimate_names_the_coolant_column_and_every_model_that_needs_it() {
     ]);
     assert!(!run.status.success());
     let message = stderr(&run);
-    // The built-in profile's spindle elongation and X straightness both read the coolant;
-    // one message names both rather than the first one found.
+    // The built-in profile's spindle elongation, X straightness and X bearings and nut all
+    // read the coolant; one message names them all rather than the first one found.
     assert!(
         message.contains("coolant_on")
             && message.contains("S elongation")
-            && message.contains("X straightness"),
+            && message.contains("X straightness")
+            && message.contains("X front bearing temperature model, "),
         "{message}"
+    );
+}
+
+/// The recording at `path` with every data row rewritten by `cell(column name, value)`; a
+/// column for which it returns `None` is dropped.
+fn rewrite_columns(
+    path: &std::path::Path,
+    out: &std::path::Path,
+    cell: impl Fn(&str, &str) -> Option<String>,
+) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut names: Option<Vec<&str>> = None;
+    let mut rewritten = String::new();
+    for line in text.lines() {
+        let kept: Vec<String> = if line.starts_with('#') {
+            vec![line.to_string()]
+        } else if let Some(names) = &names {
+            names
+                .iter()
+                .zip(line.split(','))
+                .filter_map(|(name, value)| cell(name, value))
+                .collect()
+        } else {
+            let header: Vec<&str> = line.split(',').collect();
+            let kept = header
+                .iter()
+                .filter(|name| cell(name, "0").is_some())
+                .map(|name| name.to_string())
+                .collect();
+            names = Some(header);
+            kept
+        };
+        rewritten.push_str(&kept.join(","));
+        rewritten.push('\n');
+    }
+    std::fs::write(out, rewritten).unwrap();
+}
+
+/// A shop that machines dry records `coolant_on` as 0 throughout, and its room reading never
+/// changes: calibration still fits every model, none reading the coolant or the room (either
+/// would only repeat the intercept), and the profile estimates a recording that has neither
+/// column.
+#[test]
+fn a_dry_shop_with_a_steady_room_calibrates_without_coolant_or_room_terms() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = simulate(
+        dir.path(),
+        "db.csv",
+        &["--scenario", "doe", "--hours", "4", "--seed", "5"],
+    );
+    let dry = dir.path().join("dry.csv");
+    rewrite_columns(&db, &dry, |name, value| {
+        Some(match name {
+            "coolant_on" => "0".to_string(),
+            "ambient_C" => "20".to_string(),
+            _ => value.to_string(),
+        })
+    });
+    let profile = dir.path().join("profile.toml");
+    let run = servosight(&["calibrate", "--database", arg(&dry), "-o", arg(&profile)]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let text = std::fs::read_to_string(&profile).unwrap();
+    let equations: Vec<&str> = text.lines().filter(|l| l.starts_with("equation")).collect();
+    assert!(equations.len() > 10, "{} equations", equations.len());
+    for equation in &equations {
+        assert!(
+            !equation.contains("coolant") && !equation.contains("ambient"),
+            "{equation}"
+        );
+    }
+    let day = simulate(
+        dir.path(),
+        "day.csv",
+        &["--scenario", "production", "--hours", "0.5", "--seed", "6"],
+    );
+    let bare = dir.path().join("bare.csv");
+    rewrite_columns(&day, &bare, |name, value| {
+        (name != "coolant_on" && name != "ambient_C").then(|| value.to_string())
+    });
+    let run = servosight(&[
+        "estimate",
+        "--profile",
+        arg(&profile),
+        "--recording",
+        arg(&bare),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stdout(&run).contains("front_bearing_temp"),
+        "{}",
+        stdout(&run)
     );
 }

@@ -266,7 +266,9 @@ pub fn calibrate(
         axes: BTreeMap::new(),
     };
     let mut report = CalibrationReport { models: Vec::new() };
-    let has_ambient = database.iter().all(|r| r.try_column(AMBIENT).is_some());
+    let recordings = || database.iter().chain(experiments);
+    let has_ambient = recorded_and_varying(recordings(), AMBIENT);
+    let has_coolant = recorded_and_varying(recordings(), COOLANT);
 
     // Stage 1: models of raw servo signals.
     for (&axis, axis_profile) in &profile.axes {
@@ -310,7 +312,7 @@ pub fn calibrate(
             }
             AxisKind::Spindle => {
                 if let Some((model, model_report)) =
-                    fit_elongation(axis, database, experiments, has_ambient)?
+                    fit_elongation(axis, database, experiments, has_ambient, has_coolant)?
                 {
                     models.elongation = Some(model);
                     report.models.push(model_report);
@@ -354,6 +356,7 @@ pub fn calibrate(
                     split: &split,
                     target: &target,
                     has_ambient,
+                    has_coolant,
                 },
                 database,
                 experiments,
@@ -396,16 +399,13 @@ pub fn calibrate(
         };
         let estimated = estimate_all(database)?;
         let estimated_experiments = estimate_all(experiments)?;
-        // The bed's state needs the coolant column and a nut model everywhere it is fitted.
-        let has_bed_state = database
+        // The bed's state needs a nut model everywhere it is fitted (the coolant's lags join it
+        // where the coolant is recorded and switches).
+        let has_bed_state = estimated
             .iter()
-            .chain(experiments)
-            .all(|r| r.try_column(COOLANT).is_some())
-            && estimated
-                .iter()
-                .chain(&estimated_experiments)
-                .flatten()
-                .all(|i| i.nut_C.is_finite());
+            .chain(&estimated_experiments)
+            .flatten()
+            .all(|i| i.nut_C.is_finite());
         // Every (node, direction) is a fit of its own; they run side by side and are kept in
         // node order, horizontal before vertical.
         let fits: Vec<(usize, &str)> = (1..=nodes).flat_map(|k| [(k, "h"), (k, "v")]).collect();
@@ -424,7 +424,7 @@ pub fn calibrate(
                         Side::Database => &estimated[index],
                         Side::Experiment => &estimated_experiments[index],
                     };
-                    straightness_candidates(inputs, r, has_ambient, has_bed_state)
+                    straightness_candidates(inputs, r, has_ambient, has_bed_state, has_coolant)
                 },
                 Scoring::Absolute,
             )
@@ -1078,6 +1078,28 @@ fn surroundings_columns(
     Ok(columns)
 }
 
+/// True when every recording has `column` and its value changes somewhere among them. A signal
+/// that never changes (the coolant of a shop that machines dry, a room reading held fixed) is
+/// the intercept over again: a model term built on it would make its fit collinear, so
+/// calibration offers no such terms.
+fn recorded_and_varying<'a>(
+    mut recordings: impl Iterator<Item = &'a Recording> + Clone,
+    column: &str,
+) -> bool {
+    if !recordings.clone().all(|r| r.try_column(column).is_some()) {
+        return false;
+    }
+    let mut first = None;
+    recordings.any(|r| {
+        r.try_column(column).is_some_and(|values| {
+            values
+                .iter()
+                .filter(|v| v.is_finite())
+                .any(|&v| *first.get_or_insert(v) != v)
+        })
+    })
+}
+
 /// What a heat-model fit is about.
 struct HeatFit<'a> {
     axis: AxisId,
@@ -1086,6 +1108,8 @@ struct HeatFit<'a> {
     split: &'a TorqueSplitEstimator,
     target: &'a str,
     has_ambient: bool,
+    /// The coolant is recorded everywhere and switches ([`recorded_and_varying`]).
+    has_coolant: bool,
 }
 
 /// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator + c_H·H(τ), optionally with the load
@@ -1108,10 +1132,7 @@ fn fit_heat_model(
     let db_inputs = inputs_of(database)?;
     let experiment_inputs = inputs_of(experiments)?;
     let stator_name = axis_column(fit.axis, Quantity::StatorTemp);
-    let has_coolant = database
-        .iter()
-        .chain(experiments)
-        .all(|r| r.try_column(COOLANT).is_some());
+    let has_coolant = fit.has_coolant;
     // The part's surroundings (the stator's and the coolant's lags) do not depend on τ.
     let surroundings_of = |recordings: &[Recording]| {
         recordings
@@ -1215,6 +1236,7 @@ fn fit_elongation(
     database: &[Recording],
     experiments: &[Recording],
     has_ambient: bool,
+    has_coolant: bool,
 ) -> Result<Option<(ElongationModel, ModelReport)>, CalibrationError> {
     let target = reference_column(axis, "elongation_um", None);
     if !database.iter().all(|r| r.try_column(&target).is_some()) {
@@ -1225,7 +1247,8 @@ fn fit_elongation(
     let has_bank_inputs = has_ambient
         && database
             .iter()
-            .all(|r| r.try_column(&current).is_some() && r.try_column(COOLANT).is_some());
+            .chain(experiments)
+            .all(|r| r.try_column(&current).is_some());
     let names = |list: &[&str]| list.iter().map(|n| n.to_string()).collect::<Vec<_>>();
     let base = names(&["delta_stator", "speed", "load"]);
     let mut families: Vec<([f64; 4], Vec<Vec<String>>)> = ELONGATION_TAUS_S
@@ -1255,8 +1278,16 @@ fn fit_elongation(
     if has_bank_inputs {
         // ELONGATION_FEATURES ends with the room and its three lags.
         let room_start = ELONGATION_FEATURES.len() - 4;
-        let bank = names(&ELONGATION_FEATURES[1..room_start]);
-        let with_room = names(&ELONGATION_FEATURES[1..]);
+        // Without a coolant that switches, the bank's coolant inputs are constant: left out.
+        let bank_features = |range: std::ops::Range<usize>| {
+            ELONGATION_FEATURES[range]
+                .iter()
+                .filter(|name| has_coolant || !name.starts_with("coolant"))
+                .map(|name| name.to_string())
+                .collect::<Vec<_>>()
+        };
+        let bank = bank_features(1..room_start);
+        let with_room = bank_features(1..ELONGATION_FEATURES.len());
         families.push((ELONGATION_BANK_TAUS_S, vec![with_room, bank]));
     }
     let mut best: Option<([f64; 4], Fitted)> = None;
@@ -1433,6 +1464,7 @@ fn straightness_candidates(
     recording: &Recording,
     has_ambient: bool,
     has_bed_state: bool,
+    has_coolant: bool,
 ) -> Result<Vec<Columns>, CalibrationError> {
     let column = |name: &str, f: &dyn Fn(&StraightnessInputs) -> f64| {
         (name.to_string(), inputs.iter().map(f).collect::<Vec<f64>>())
@@ -1468,7 +1500,9 @@ fn straightness_candidates(
     ];
     let mut with_bed = linear.clone();
     for (name, f) in BED_LAG_FEATURES.iter().zip(bed_state) {
-        with_bed.push(column(name, &f));
+        if has_coolant || !COOLANT_LAG_FEATURES.contains(name) {
+            with_bed.push(column(name, &f));
+        }
     }
     let mut candidates = with_room_variant(cubic, recording, has_ambient)?;
     candidates.extend(with_room_and_lag_variants(linear, recording, has_ambient)?);
@@ -1864,6 +1898,7 @@ mod tests {
                     split: &split,
                     target: &target,
                     has_ambient: true,
+                    has_coolant: true,
                 },
                 std::slice::from_ref(&database),
                 &[],

@@ -394,8 +394,12 @@ impl EstimatorPipeline {
                 .filter(|(c, _)| *c == column)
                 .map(|(_, reader)| reader.as_str())
                 .collect();
+            let listed = match readers.split_last() {
+                Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+                _ => readers.join(""),
+            };
             return Err(PipelineError::MissingColumn {
-                purpose: format!("{}: they were fitted with it", readers.join(" and ")),
+                purpose: format!("{listed}: they were fitted with it"),
                 column,
             });
         }
