@@ -15,11 +15,7 @@ use servosight::signal::{AxisId, Quantity, Recording, Schema, axis_column};
 use servosight::sim::{ScenarioKind, TwinConfig, simulate};
 
 fn five_axis_setup() -> (MachineProfile, Schema, Vec<Vec<f64>>) {
-    let mut profile = MachineProfile::from_toml(
-        include_str!("../assets/it25-twin.toml"),
-        "assets/it25-twin.toml",
-    )
-    .expect("the shipped profile loads");
+    let mut profile = MachineProfile::twin_calibrated().expect("the shipped profile loads");
     let mut calibration = profile
         .calibration
         .take()

@@ -3,8 +3,9 @@
 
 /// `f` over `items` on up to as many threads as the machine has cores (at most four), the
 /// results in the order of the items. Each thread takes the next item not yet taken: the items
-/// differ in cost (a family of two-lag members next to one of plain gains), and contiguous
-/// chunks would leave one thread with the dear ones while the others wait.
+/// may differ in cost (a discrepancy family of two-lag members next to one of plain gains, a
+/// heat fit at a long τ next to one at a short τ), and contiguous chunks would leave one
+/// thread with the dear ones while the others wait.
 pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
     let threads = worker_threads(items.len());
     if threads <= 1 {

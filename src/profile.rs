@@ -291,6 +291,15 @@ impl MachineProfile {
         std::fs::write(path, text).map_err(|error| ProfileError::Io { path: name, error })
     }
 
+    /// The twin's machine as shipped, calibrated by `scripts/accuracy.sh`
+    /// (`assets/it25-twin.toml`, built in): what the HMI estimates with on the embedded twin.
+    pub fn twin_calibrated() -> Result<MachineProfile, ProfileError> {
+        MachineProfile::from_toml(
+            include_str!("../assets/it25-twin.toml"),
+            "assets/it25-twin.toml (built in)",
+        )
+    }
+
     /// The profile of the twin's default machine, without calibration.
     pub fn twin_default() -> MachineProfile {
         let machine = crate::sim::MachineParams::default();

@@ -71,9 +71,6 @@ pub struct Args {
     pub stator_fault_c: f64,
 }
 
-/// The twin's calibrated profile, built in so the default HMI shows estimates anywhere.
-const TWIN_PROFILE: &str = include_str!("../../assets/it25-twin.toml");
-
 fn parse_scenario(s: &str) -> Result<ScenarioKind, String> {
     s.parse()
 }
@@ -127,10 +124,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let profile = match (&args.profile, &source) {
         (Some(path), _) => Some(MachineProfile::load(path)?),
-        (None, SourceSpec::Twin { .. }) => Some(MachineProfile::from_toml(
-            TWIN_PROFILE,
-            "assets/it25-twin.toml (built in)",
-        )?),
+        // Built in, so the default HMI shows estimates anywhere.
+        (None, SourceSpec::Twin { .. }) => Some(MachineProfile::twin_calibrated()?),
         (None, _) => None,
     };
     let estimate_limits = profile

@@ -221,11 +221,7 @@ mod tests {
     #[test]
     fn a_streamed_run_matches_the_run_over_the_whole_recording() {
         use crate::sim::{ScenarioKind, TwinConfig, simulate};
-        let profile = MachineProfile::from_toml(
-            include_str!("../../assets/it25-twin.toml"),
-            "it25-twin.toml",
-        )
-        .unwrap();
+        let profile = MachineProfile::twin_calibrated().unwrap();
         let recording = simulate(TwinConfig::new(ScenarioKind::Production, Some(0.5), 5)).unwrap();
         let whole = run(&profile, &recording).unwrap();
         let mut text = Vec::new();

@@ -288,12 +288,7 @@ pub fn calibrate(
                             let stator = r.column_for(&stator, "the motor flange model")?;
                             let base = vec![("stator".to_string(), stator.to_vec())];
                             let mut lagged = base.clone();
-                            for (name, column) in STATOR_LAG_FEATURES
-                                .iter()
-                                .zip(settled_lag_columns(r.time(), stator, STATOR_LAG_TAUS_S))
-                            {
-                                lagged.push((name.to_string(), column));
-                            }
+                            lagged.extend(stator_lag_columns(r.time(), stator));
                             let mut candidates = with_room_variant(base, r, has_ambient)?;
                             candidates.extend(with_room_and_lag_variants(lagged, r, has_ambient)?);
                             Ok(candidates)
@@ -408,8 +403,9 @@ pub fn calibrate(
             .all(|i| i.nut_C.is_finite());
         // Every (node, direction) is a fit of its own; they run side by side and are kept in
         // node order, horizontal before vertical.
-        let fits: Vec<(usize, &str)> = (1..=nodes).flat_map(|k| [(k, "h"), (k, "v")]).collect();
-        let fitted = parallel_map(&fits, |&(k, hv)| {
+        let fits: Vec<(usize, bool)> = (1..=nodes).flat_map(|k| [(k, false), (k, true)]).collect();
+        let fitted = parallel_map(&fits, |&(k, vertical)| {
+            let hv = if vertical { "v" } else { "h" };
             let target = reference_column(axis, &format!("straightness_{hv}_um"), Some(k));
             let label = format!("{axis}.straightness_{hv}#{k}");
             let symbol = format!("δ_{}{k}", hv.to_uppercase());
@@ -430,13 +426,10 @@ pub fn calibrate(
             )
         });
         let (mut h, mut v) = (Vec::new(), Vec::new());
-        for (&(_, hv), fitted) in fits.iter().zip(fitted) {
+        for (&(_, vertical), fitted) in fits.iter().zip(fitted) {
             let fitted = fitted?;
-            if hv == "h" {
-                h.push(fitted.model)
-            } else {
-                v.push(fitted.model)
-            }
+            let direction = if vertical { &mut v } else { &mut h };
+            direction.push(fitted.model);
             report.models.push(fitted.report);
         }
         let models = calibration.axes.entry(axis).or_default();
@@ -1042,40 +1035,53 @@ fn accumulate(time: &[f64], input: &[f64], tau_s: f64) -> Vec<f64> {
         .collect()
 }
 
-/// A part's surroundings over a recording, as [`super::streaming::ThermalSurroundings`] holds
-/// them: the stator through each lag of [`STATOR_LAG_TAUS_S`], then (`with_coolant`) the
-/// coolant's on/off state through each lag of [`BED_LAG_TAUS_S`].
-fn surroundings_columns(
-    recording: &Recording,
-    stator: &str,
-    with_coolant: bool,
-    purpose: &str,
-) -> Result<Columns, CalibrationError> {
-    let time = recording.time();
-    let stator_lags = settled_lag_columns(
-        time,
-        recording.column_for(stator, purpose)?,
-        STATOR_LAG_TAUS_S,
-    );
-    let mut columns: Columns = STATOR_LAG_FEATURES
+/// The stator through each lag of [`STATOR_LAG_TAUS_S`] over a recording, named as
+/// [`STATOR_LAG_FEATURES`], exactly as the pipeline's stator lags follow it.
+fn stator_lag_columns(time: &[f64], stator: &[f64]) -> Columns {
+    STATOR_LAG_FEATURES
         .iter()
         .map(|name| name.to_string())
-        .zip(stator_lags)
-        .collect();
-    if with_coolant {
-        let coolant_lags = settled_lag_columns(
-            time,
-            recording.column_for(COOLANT, purpose)?,
-            BED_LAG_TAUS_S,
-        );
-        columns.extend(
+        .zip(settled_lag_columns(time, stator, STATOR_LAG_TAUS_S))
+        .collect()
+}
+
+/// A part's surroundings over a recording, as [`super::streaming::ThermalSurroundings`] holds
+/// them.
+struct SurroundingsColumns {
+    /// The stator through each lag of [`STATOR_LAG_TAUS_S`].
+    stator: Columns,
+    /// The coolant's on/off state through each lag of [`BED_LAG_TAUS_S`] (empty where the
+    /// coolant is not offered).
+    coolant: Columns,
+}
+
+impl SurroundingsColumns {
+    fn of(
+        recording: &Recording,
+        stator: &str,
+        with_coolant: bool,
+        purpose: &str,
+    ) -> Result<Self, CalibrationError> {
+        let time = recording.time();
+        let coolant = if with_coolant {
+            let lags = settled_lag_columns(
+                time,
+                recording.column_for(COOLANT, purpose)?,
+                BED_LAG_TAUS_S,
+            );
             COOLANT_LAG_FEATURES
                 .iter()
                 .map(|name| name.to_string())
-                .zip(coolant_lags),
-        );
+                .zip(lags)
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Ok(SurroundingsColumns {
+            stator: stator_lag_columns(time, recording.column_for(stator, purpose)?),
+            coolant,
+        })
     }
-    Ok(columns)
 }
 
 /// True when every recording has `column` and its value changes somewhere among them. A signal
@@ -1115,7 +1121,7 @@ struct HeatFit<'a> {
 /// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator + c_H·H(τ), optionally with the load
 /// heat c_L·H_load(τ) and the churning heat c_C·H_churning(τ), with the room c_room·T_room and
 /// the room through the lags of `AMBIENT_LAG_TAUS_S`, and with the part's surroundings (the
-/// stator's lags, then also the coolant's: [`surroundings_columns`]); τ and the optional terms
+/// stator's lags, then also the coolant's: [`SurroundingsColumns`]); τ and the optional terms
 /// are chosen on the experiments (or by blocked cross-validation).
 fn fit_heat_model(
     fit: HeatFit<'_>,
@@ -1137,7 +1143,7 @@ fn fit_heat_model(
     let surroundings_of = |recordings: &[Recording]| {
         recordings
             .iter()
-            .map(|r| surroundings_columns(r, &stator_name, has_coolant, &estimate))
+            .map(|r| SurroundingsColumns::of(r, &stator_name, has_coolant, &estimate))
             .collect::<Result<Vec<_>, _>>()
     };
     let db_surroundings = surroundings_of(database)?;
@@ -1177,17 +1183,18 @@ fn fit_heat_model(
                         churning_heat.clone(),
                     ],
                 ] {
+                    // The fullest variant (the last) again with the surroundings: the stator's
+                    // lags, then also the coolant's where it is offered.
+                    let mut surrounded = base.clone();
                     let variants = with_room_and_lag_variants(base, r, fit.has_ambient)?;
-                    // The fullest variant again with the surroundings: the stator's lags, then
-                    // also the coolant's where it is recorded.
-                    let mut surrounded = variants.last().cloned().unwrap_or_default();
+                    if let Some(fullest) = variants.last() {
+                        surrounded.clone_from(fullest);
+                    }
                     candidates.extend(variants);
-                    let (stator_lags, coolant_lags) =
-                        surroundings.split_at(STATOR_LAG_FEATURES.len());
-                    surrounded.extend_from_slice(stator_lags);
+                    surrounded.extend_from_slice(&surroundings.stator);
                     candidates.push(surrounded.clone());
-                    if !coolant_lags.is_empty() {
-                        surrounded.extend_from_slice(coolant_lags);
+                    if !surroundings.coolant.is_empty() {
+                        surrounded.extend_from_slice(&surroundings.coolant);
                         candidates.push(surrounded);
                     }
                 }

@@ -28,7 +28,7 @@ pub const FLANGE_FEATURES: &[&str] = &[
     "ambient_lag_90min",
     "ambient_lag_270min",
 ];
-/// Time constants of the stator lags the motor flange model may read.
+/// Time constants of the stator lags the motor flange, bearing and nut models may read.
 pub const STATOR_LAG_TAUS_S: [f64; 3] = [300.0, 900.0, 2700.0];
 /// The feature names of [`STATOR_LAG_TAUS_S`], in the same order.
 pub const STATOR_LAG_FEATURES: [&str; 3] =
@@ -112,7 +112,8 @@ pub const STRAIGHTNESS_FEATURES: &[&str] = &[
     "coolant_lag_90min",
 ];
 /// Time constants of the bed's state as the straightness models read it: the estimated motor
-/// and back-bearing temperatures and the coolant's on/off state through first-order lags.
+/// and back-bearing temperatures and the coolant's on/off state through first-order lags (the
+/// bearing and nut models read the coolant through the same lags).
 pub const BED_LAG_TAUS_S: [f64; 2] = [1800.0, 5400.0];
 /// The bed-state features of [`STRAIGHTNESS_FEATURES`]: the estimated nut temperature, then the
 /// motor, the back bearing and the coolant through each lag of [`BED_LAG_TAUS_S`].
@@ -482,6 +483,8 @@ mod tests {
     /// wrong value.
     #[test]
     fn lag_features_sit_where_the_estimators_put_them() {
+        assert_eq!(FLANGE_FEATURES[3..6], STATOR_LAG_FEATURES);
+        assert_eq!(FLANGE_FEATURES[6..], AMBIENT_LAG_FEATURES);
         let heat_lags = HEAT_FEATURES.len() - 8;
         assert_eq!(
             HEAT_FEATURES[heat_lags..heat_lags + 3],

@@ -288,23 +288,22 @@ impl EstimatorPipeline {
                                 .is_some_and(|e| e.uses_features_starting_with(prefix))
                         })
                     };
-                    if reads("coolant") && coolant.is_none() {
-                        unmet.push((COOLANT.into(), format!("the {axis} straightness models")));
-                    }
-                    for (estimator, what) in [
-                        (&front, "front bearing"),
-                        (&back, "back bearing"),
-                        (&nut, "nut"),
-                    ] {
-                        if coolant.is_none()
-                            && estimator
-                                .as_ref()
-                                .is_some_and(|e| e.uses_features_starting_with("coolant"))
-                        {
-                            unmet.push((
-                                COOLANT.into(),
-                                format!("the {axis} {what} temperature model"),
-                            ));
+                    let part_reads_coolant = |part: &Option<ComponentThermalEstimator>| {
+                        part.as_ref()
+                            .is_some_and(|e| e.uses_features_starting_with("coolant"))
+                    };
+                    let coolant_readers = [
+                        (reads("coolant"), "straightness models"),
+                        (
+                            part_reads_coolant(&front),
+                            "front bearing temperature model",
+                        ),
+                        (part_reads_coolant(&back), "back bearing temperature model"),
+                        (part_reads_coolant(&nut), "nut temperature model"),
+                    ];
+                    if coolant.is_none() {
+                        for (_, what) in coolant_readers.iter().filter(|(reads, _)| *reads) {
+                            unmet.push((COOLANT.into(), format!("the {axis} {what}")));
                         }
                     }
                     if reads("nut") && models.nut_temp.is_none() {
@@ -779,11 +778,7 @@ mod tests {
 
     /// The twin's profile with the X front bearing's temperature read by `terms` alone.
     fn profile_with_front_bearing(terms: &[&str], coefficients: &[f64]) -> MachineProfile {
-        let mut profile = MachineProfile::from_toml(
-            include_str!("../../assets/it25-twin.toml"),
-            "it25-twin.toml",
-        )
-        .unwrap();
+        let mut profile = MachineProfile::twin_calibrated().unwrap();
         let calibration = profile.calibration.as_mut().unwrap();
         let front = calibration
             .axes
@@ -859,9 +854,9 @@ mod tests {
             message.contains(COOLANT) && message.contains("X front bearing temperature model"),
             "{message}"
         );
-        let reads_nothing = profile_with_front_bearing(&["const", "stator"], &[1.0, 1.0]);
-        let Err(error) = EstimatorPipeline::new(&reads_nothing, &schema) else {
-            panic!("the straightness and elongation still read the coolant");
+        let front_without_coolant = profile_with_front_bearing(&["const", "stator"], &[1.0, 1.0]);
+        let Err(error) = EstimatorPipeline::new(&front_without_coolant, &schema) else {
+            panic!("frames without the coolant were accepted, though the straightness reads it");
         };
         assert!(!error.to_string().contains("front bearing"), "{error}");
     }

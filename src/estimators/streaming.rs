@@ -178,7 +178,9 @@ impl BedLags {
 pub struct ThermalSurroundings {
     /// The axis's stator temperature, °C.
     pub stator_C: f64,
-    /// The stator through the lags of [`STATOR_LAG_TAUS_S`](super::models::STATOR_LAG_TAUS_S), °C (settled at its first reading).
+    /// The stator through the lags of
+    /// [`STATOR_LAG_TAUS_S`](super::models::STATOR_LAG_TAUS_S), °C (settled at its first
+    /// reading).
     pub stator_lags_C: [f64; 3],
     /// The room now and through its lags.
     pub room: Room,
@@ -188,7 +190,8 @@ pub struct ThermalSurroundings {
 }
 
 /// Motor flange temperature from the stator temperature (Eq. 7), and, where the model reads
-/// them, the stator through the lags of [`STATOR_LAG_TAUS_S`](super::models::STATOR_LAG_TAUS_S) and the room through its lags.
+/// them, the stator through the lags of
+/// [`STATOR_LAG_TAUS_S`](super::models::STATOR_LAG_TAUS_S) and the room through its lags.
 #[derive(Debug, Clone)]
 pub struct MotorFlangeEstimator {
     model: BoundModel,
