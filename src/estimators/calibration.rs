@@ -1185,17 +1185,17 @@ fn fit_heat_model(
                 ] {
                     // The fullest variant (the last) again with the surroundings: the stator's
                     // lags, then also the coolant's where it is offered.
-                    let mut surrounded = base.clone();
                     let variants = with_room_and_lag_variants(base, r, fit.has_ambient)?;
-                    if let Some(fullest) = variants.last() {
-                        surrounded.clone_from(fullest);
-                    }
+                    let surrounded = variants.last().map(|fullest| {
+                        let with_stator = [fullest.as_slice(), &surroundings.stator].concat();
+                        let with_coolant = (!surroundings.coolant.is_empty())
+                            .then(|| [with_stator.as_slice(), &surroundings.coolant].concat());
+                        (with_stator, with_coolant)
+                    });
                     candidates.extend(variants);
-                    surrounded.extend_from_slice(&surroundings.stator);
-                    candidates.push(surrounded.clone());
-                    if !surroundings.coolant.is_empty() {
-                        surrounded.extend_from_slice(&surroundings.coolant);
-                        candidates.push(surrounded);
+                    if let Some((with_stator, with_coolant)) = surrounded {
+                        candidates.push(with_stator);
+                        candidates.extend(with_coolant);
                     }
                 }
                 Ok(candidates)
