@@ -1,6 +1,7 @@
 //! Recording format v1: round trips and a bounded fuzz of the reader.
 
 use proptest::prelude::*;
+use servosight::signal::channel::plausible_range_of;
 use servosight::signal::{Recording, RecordingReader, write_recording_to};
 
 fn column_name() -> impl Strategy<Value = String> {
@@ -35,11 +36,19 @@ fn recording() -> impl Strategy<Value = Recording> {
                     for (k, v) in metadata {
                         rec.set_metadata(&k, &v);
                     }
+                    // A column the format knows (the reference straightness) takes values in
+                    // its plausible range; the rest any normal number.
+                    let ranges: Vec<Option<(f64, f64)>> =
+                        names.iter().map(|n| plausible_range_of(n)).collect();
                     let mut t = 0.0;
                     for (r, step) in steps.iter().enumerate() {
                         t += step;
                         let mut row = vec![t];
-                        row.extend_from_slice(&values[r * width..(r + 1) * width]);
+                        row.extend(
+                            values[r * width..(r + 1) * width].iter().zip(&ranges).map(
+                                |(&v, range)| range.map_or(v, |(low, high)| v.clamp(low, high)),
+                            ),
+                        );
                         rec.push_row(&row).unwrap();
                     }
                     rec

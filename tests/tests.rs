@@ -1,5 +1,6 @@
 //! The one integration-test binary (egui and friends are linked once, see DESIGN.md).
 
+mod cli_misuse;
 mod common;
 mod discrepancy;
 mod discrepancy_other_machine;

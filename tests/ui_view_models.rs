@@ -744,6 +744,7 @@ fn backlash_report(um: f64) -> servosight::estimators::backlash::BacklashReport 
             rise_t: 200.0,
             samples: 20000,
         }],
+        feeds_without_a_rise: Vec::new(),
         confidence: 0.6,
         test_duration_s: 167.0,
     }

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::outln;
 use servosight::compensation::audit;
 
 /// Arguments of `servosight audit`.
@@ -30,12 +31,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let report = audit::verify(&log)?;
             match json {
                 Some(path) => crate::servosight_cli::write_json(&path, &report)?,
-                None => println!(
+                None => outln!(
                     "{}: {} entries, chain intact, head {}",
                     log.display(),
                     report.entries,
                     report.head_hash
-                ),
+                )?,
             }
             Ok(())
         }

@@ -1,11 +1,12 @@
 //! `servosight backlash` and `servosight backlash-program`: the paper's servo-signal backlash test.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
+use crate::servosight_cli::{out, outln, refuse_overwriting_inputs, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::backlash::{analyse_backlash, nc_program};
 use servosight::profile::MachineProfile;
-use servosight::signal::{AxisId, read_recording};
+use servosight::signal::{AxisId, Quantity, read_recording};
 use servosight::sim::BacklashTestPlan;
 
 /// Arguments of `servosight backlash`.
@@ -56,6 +57,9 @@ fn parse_axis(s: &str) -> Result<AxisId, String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut inputs = vec![args.recording.as_path()];
+    inputs.extend(args.profile.as_deref());
+    refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;
     let profile = match &args.profile {
         Some(path) => MachineProfile::load(path)?,
         None => MachineProfile::twin_default(),
@@ -67,19 +71,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("the profile has no ball screw for axis {}", args.axis))?;
     let recording = read_recording(&args.recording).context("cannot read recording")?;
     let report = analyse_backlash(&recording, args.axis, lead)?;
-    println!(
+    if !text_report_wanted(args.json.as_deref()) {
+        return crate::servosight_cli::write_json(Path::new("-"), &report);
+    }
+    outln!(
         "{} axis backlash: {:.1} µm (confidence {:.2}), from a {:.1} min test",
         report.axis,
         report.backlash_um,
         report.confidence,
         report.test_duration_s / 60.0
-    );
-    println!(
+    )?;
+    outln!(
         "{:>10} {:>10} {:>12} {:>20} {:>12}",
-        "feed", "motor rpm", "backlash µm", "95 % interval µm", "rise A (t)"
-    );
+        "feed",
+        "motor rpm",
+        "backlash µm",
+        "95 % interval µm",
+        "rise A (t)"
+    )?;
     for b in &report.by_speed {
-        println!(
+        outln!(
             "{:>10.0} {:>10.1} {:>12.1} {:>9.1} – {:<8.1} {:>6.3} ({:.0})",
             b.feed_mm_per_min,
             b.speed_rpm,
@@ -88,7 +99,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             b.ci_high_um,
             b.current_rise_a,
             b.rise_t
-        );
+        )?;
+    }
+    for feed in &report.feeds_without_a_rise {
+        outln!(
+            "{feed:>10.0}  no rise of the current: no knee at this feed (counted against the confidence)"
+        )?;
     }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(path, &report)?;
@@ -105,15 +121,43 @@ pub fn run_program(args: ProgramArgs) -> anyhow::Result<()> {
         ..BacklashTestPlan::default()
     };
     anyhow::ensure!(
-        plan.min_increment_um > 0.0 && plan.max_amplitude_um >= plan.min_increment_um,
+        matches!(args.axis, AxisId::X | AxisId::Y | AxisId::Z),
+        "the backlash test drives a linear feed axis (X, Y or Z), not {}",
+        args.axis
+    );
+    let (low, high) = Quantity::Position.plausible_range();
+    anyhow::ensure!(
+        args.centre_mm.is_finite() && (low..=high).contains(&args.centre_mm),
+        "--centre-mm must be a position on the axis, between {low} and {high} mm, not {}",
+        args.centre_mm
+    );
+    anyhow::ensure!(
+        plan.min_increment_um.is_finite()
+            && plan.max_amplitude_um.is_finite()
+            && plan.min_increment_um > 0.0
+            && plan.max_amplitude_um >= plan.min_increment_um,
         "the amplitudes must run from a positive minimum increment up to the maximum"
     );
     anyhow::ensure!(
-        !plan.feeds_mm_per_min.is_empty() && plan.feeds_mm_per_min.iter().all(|f| *f > 0.0),
-        "feeds must be positive"
+        !plan.feeds_mm_per_min.is_empty()
+            && plan
+                .feeds_mm_per_min
+                .iter()
+                .all(|f| f.is_finite() && *f > 0.0),
+        "feeds must be positive numbers of mm/min"
+    );
+    anyhow::ensure!(
+        args.acceleration.is_finite() && args.acceleration > 0.0,
+        "--acceleration must be a positive number of mm/s², not {}",
+        args.acceleration
+    );
+    // Checked before anything is written: a program too long to run is not left behind.
+    let minutes = plan.duration_s(args.acceleration) / 60.0;
+    anyhow::ensure!(
+        minutes < 10.0,
+        "this test would take {minutes:.1} min: reduce the amplitudes or feeds"
     );
     let program = nc_program(&plan, args.axis, args.acceleration);
-    let minutes = plan.duration_s(args.acceleration) / 60.0;
     match &args.output {
         Some(path) => {
             std::fs::write(path, &program)
@@ -123,11 +167,7 @@ pub fn run_program(args: ProgramArgs) -> anyhow::Result<()> {
                 path.display()
             );
         }
-        None => print!("{program}"),
+        None => out!("{program}")?,
     }
-    anyhow::ensure!(
-        minutes < 10.0,
-        "this test would take {minutes:.1} min: reduce the amplitudes or feeds"
-    );
     Ok(())
 }

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::{outln, refuse_overwriting_inputs, same_file, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::calibration::{CorrectionForm, calibrate};
 use servosight::profile::MachineProfile;
@@ -33,6 +34,15 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let inputs: Vec<&std::path::Path> = args
+        .database
+        .iter()
+        .chain(&args.experiments)
+        .chain(&args.profile)
+        .map(PathBuf::as_path)
+        .collect();
+    refuse_overwriting_inputs(&inputs, &[Some(&args.output), args.json.as_deref()])?;
+    refuse_a_recording_given_twice(&args.database, &args.experiments)?;
     let mut profile = match &args.profile {
         Some(path) => MachineProfile::load(path)?,
         None => MachineProfile::twin_default(),
@@ -50,15 +60,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     profile.calibration = Some(calibration);
     profile.validate("the calibrated profile")?;
     profile.save(&args.output)?;
-    println!(
+    if !text_report_wanted(args.json.as_deref()) {
+        return crate::servosight_cli::write_json(std::path::Path::new("-"), &report);
+    }
+    outln!(
         "{:<34} {:>8} {:>8} {:>8} {:>12}  equation",
-        "model", "n", "R²", "CV R²", "F"
-    );
+        "model",
+        "n",
+        "R²",
+        "CV R²",
+        "F"
+    )?;
     for m in &report.models {
-        println!(
+        outln!(
             "{:<34} {:>8} {:>8.4} {:>8.4} {:>12.4e}  {}",
-            m.estimate, m.n, m.r2, m.cv_r2, m.f_statistic, m.equation
-        );
+            m.estimate,
+            m.n,
+            m.r2,
+            m.cv_r2,
+            m.f_statistic,
+            m.equation
+        )?;
         if let Some(c) = &m.experiment_correction {
             let verdict = match c.form {
                 CorrectionForm::None => "none applied".to_string(),
@@ -68,7 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     format!("applied: {:+.4} + {:.4}·predicted", c.offset, c.gain)
                 }
             };
-            println!(
+            outln!(
                 "{:<34} experiments: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
                 "",
                 c.n,
@@ -80,12 +102,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 verdict,
                 c.rmse_before,
                 c.rmse_after,
-            );
+            )?;
         }
     }
-    println!("calibrated profile written to {}", args.output.display());
+    outln!("calibrated profile written to {}", args.output.display())?;
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(path, &report)?;
+    }
+    Ok(())
+}
+
+/// A recording listed twice (twice as a database, or as a database and an experiment) would
+/// count its rows twice and make every model's statistics claim more evidence than there is.
+fn refuse_a_recording_given_twice(
+    database: &[PathBuf],
+    experiments: &[PathBuf],
+) -> anyhow::Result<()> {
+    let all: Vec<&PathBuf> = database.iter().chain(experiments).collect();
+    for (i, a) in all.iter().enumerate() {
+        if let Some(b) = all[..i].iter().find(|b| same_file(a, b)) {
+            let alias = if a == b {
+                String::new()
+            } else {
+                format!(" (also as {})", b.display())
+            };
+            anyhow::bail!(
+                "{} is given twice{alias}: each recording may be used once",
+                a.display()
+            );
+        }
     }
     Ok(())
 }

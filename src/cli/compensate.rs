@@ -16,6 +16,7 @@ use servosight::compensation::{
 use servosight::link::{ConnectionState, ControllerLink};
 
 use super::serial_args::SerialArgs;
+use crate::servosight_cli::{outln, refuse_overwriting_inputs};
 
 /// Arguments of `servosight compensate`.
 #[derive(Debug, clap::Args)]
@@ -133,20 +134,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("cannot read {}", args.proposal.display()))?;
             let proposal: Proposal = serde_json::from_str(&text)
                 .with_context(|| format!("{} is not a proposal", args.proposal.display()))?;
-            push(proposal, &args.push)
+            push(proposal, &args.push, Some(&args.proposal))
         }
         Command::Rollback(args) => {
             let audit = AuditLog::open(&args.push.audit).context("the audit log")?;
             let entries = audit.entries()?;
             drop(audit);
             let proposal = compensation::rollback_proposal(&entries, args.request.as_deref())?;
-            push(proposal, &args.push)
+            push(proposal, &args.push, None)
         }
         Command::SetUser(args) => set_user(args),
     }
 }
 
 fn propose(args: ProposeArgs) -> anyhow::Result<()> {
+    // The evidence is often a file (a recording, a report): never write the proposal over it.
+    refuse_overwriting_inputs(&[Path::new(&args.evidence)], &[Some(&args.output)])?;
+    anyhow::ensure!(
+        !args.why.trim().is_empty(),
+        "--why is empty: say why the change is needed (the approver reads it)"
+    );
     let mut changes = CompensationValues::new();
     for item in &args.set {
         let (id, value) = item
@@ -159,6 +166,11 @@ fn propose(args: ProposeArgs) -> anyhow::Result<()> {
             .with_context(|| format!("`{value}` is not a number of micrometres"))?;
         if !value.is_finite() {
             bail!("`{value}` is not a finite number of micrometres");
+        }
+        if let Some(earlier) = changes.get(id)
+            && earlier != value
+        {
+            bail!("{id} is set twice, to {earlier} and to {value} µm: give it once");
         }
         changes.set(id, value);
     }
@@ -201,7 +213,7 @@ fn show(args: ShowArgs) -> anyhow::Result<()> {
     let link = connect(&args.serial)?;
     let values = link.read_compensation().wait()?;
     for (id, value) in values.iter() {
-        println!("{id:<20} {value:>9.1} µm");
+        outln!("{id:<20} {value:>9.1} µm")?;
     }
     Ok(())
 }
@@ -240,7 +252,11 @@ pub(crate) fn load_limits(path: Option<&Path>) -> anyhow::Result<CompensationLim
     }
 }
 
-fn push(proposal: Proposal, args: &PushArgs) -> anyhow::Result<()> {
+fn push(proposal: Proposal, args: &PushArgs, proposal_path: Option<&Path>) -> anyhow::Result<()> {
+    let mut inputs = vec![args.users.as_path(), args.audit.as_path()];
+    inputs.extend(args.limits.as_deref());
+    inputs.extend(proposal_path);
+    refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;
     let credentials = Credentials::load(&args.users)?;
     if !credentials.users.iter().any(|u| u.name == args.operator) {
         bail!(

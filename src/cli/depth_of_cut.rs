@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::{outln, refuse_overwriting_inputs, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::depth_of_cut::recommend_depth_of_cut;
 use servosight::profile::MachineProfile;
@@ -25,30 +26,55 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // From a watch screw to the largest lathes' swing: outside it the number is a typo, and
+    // the cutting force it implies (torque over radius) would be nonsense.
     anyhow::ensure!(
-        args.workpiece_diameter_mm > 0.0,
-        "--workpiece-diameter-mm must be positive"
+        args.workpiece_diameter_mm.is_finite()
+            && (1.0..=10_000.0).contains(&args.workpiece_diameter_mm),
+        "--workpiece-diameter-mm must be between 1 and 10000 mm, not {}",
+        args.workpiece_diameter_mm
     );
+    let mut inputs = vec![args.recording.as_path()];
+    inputs.extend(args.profile.as_deref());
+    refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;
     let profile = match &args.profile {
         Some(path) => MachineProfile::load(path)?,
         None => MachineProfile::twin_default(),
     };
     let recording = read_recording(&args.recording).context("cannot read recording")?;
     let r = recommend_depth_of_cut(&profile, &recording, args.workpiece_diameter_mm)?;
-    println!(
+    if !text_report_wanted(args.json.as_deref()) {
+        return crate::servosight_cli::write_json(std::path::Path::new("-"), &r);
+    }
+    outln!(
         "Maximum rough-cut depth: {:.1} mm at f = {:.2} mm/rev, {:.0} rpm — limited by {}",
-        r.recommended_depth_mm, r.feed_per_rev_mm, r.spindle_rpm, r.limiting_component
-    );
-    println!("  {}", r.reason);
-    println!(
+        r.recommended_depth_mm,
+        r.feed_per_rev_mm,
+        r.spindle_rpm,
+        r.limiting_component
+    )?;
+    outln!("  {}", r.reason)?;
+    outln!(
         "  {:<22} {:>10} {:>12} {:>12} {:>10} {:>6}",
-        "component", "idle", "per mm", "limit", "max depth", "R²"
-    );
+        "component",
+        "idle",
+        "per mm",
+        "limit",
+        "max depth",
+        "R²"
+    )?;
     for c in &r.components {
-        println!(
+        outln!(
             "  {:<22} {:>10.2} {:>12.2} {:>12.1} {:>7.2} mm {:>6.3}  {} ({})",
-            c.component, c.idle_load, c.load_per_mm, c.limit, c.max_depth_mm, c.r2, c.unit, c.why
-        );
+            c.component,
+            c.idle_load,
+            c.load_per_mm,
+            c.limit,
+            c.max_depth_mm,
+            c.r2,
+            c.unit,
+            c.why
+        )?;
     }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(path, &r)?;

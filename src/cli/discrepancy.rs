@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::servosight_cli::{out, refuse_overwriting_inputs, text_report_wanted};
 use anyhow::Context;
 use servosight::discrepancy::{Options, RowBudget, analyse};
 use servosight::parallel::join_or_resume;
@@ -117,6 +118,14 @@ fn read_for_analysis(
 /// Runs `servosight discrepancy`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     keep_freed_memory_for_reuse();
+    refuse_overwriting_inputs(
+        &[&args.sim, &args.real],
+        &[
+            args.json.as_deref(),
+            args.plot_data.as_deref(),
+            args.plot.as_deref(),
+        ],
+    )?;
     if let Some(block_s) = args.average
         && !(block_s.is_finite() && block_s > 0.0)
     {
@@ -147,9 +156,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Options::default()
     };
     let report = analyse(&sim, &real, &args.target, &options)?;
-    let json_to_stdout = args.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
-    if !json_to_stdout {
-        print!("{}", report.summary());
+    if text_report_wanted(args.json.as_deref()) {
+        out!("{}", report.summary())?;
     }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(path, &report)?;

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::{outln, refuse_overwriting_inputs, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::abnormality::{AbnormalityState, judge};
 use servosight::estimators::accuracy::{AccuracyRow, StreamError, StreamedRun, run_streaming};
@@ -123,6 +124,17 @@ fn write_estimates(
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !args
+            .output
+            .as_deref()
+            .is_some_and(crate::servosight_cli::is_stdout),
+        "-o - is not supported: the estimates go to a file (-o EST.csv)"
+    );
+    refuse_overwriting_inputs(
+        &[&args.profile, &args.recording],
+        &[args.output.as_deref(), args.json.as_deref()],
+    )?;
     let profile = MachineProfile::load(&args.profile)?;
     // Row by row, never the whole recording in memory (hours of 1 kHz servo data are
     // gigabytes); the estimates file, if asked for, in a second pass.
@@ -131,6 +143,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         StreamError::Recording(e) => anyhow::Error::new(e).context("cannot read recording"),
         other => other.into(),
     })?;
+    anyhow::ensure!(
+        series.rows > 0,
+        "{} has a header but no data rows: nothing to estimate",
+        args.recording.display()
+    );
     let rows = &series.accuracy;
     let finite = |v: f64| v.is_finite().then_some(v);
     let abnormality: Vec<AbnormalityRow> = series
@@ -157,21 +174,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.output {
         write_estimates(path, &args, &profile, &series)?;
     }
-    if rows.is_empty() {
-        println!(
+    let text = text_report_wanted(args.json.as_deref());
+    if text && rows.is_empty() {
+        outln!(
             "{} rows estimated; the recording has no reference columns to score against",
             series.rows
-        );
-    } else {
-        println!(
+        )?;
+    } else if text {
+        outln!(
             "{:<24} {:>8} {:>8} {:>10} {:>10} {:>9} {:>10}  reference",
-            "estimate", "n", "R²", "RMSE", "max |err|", "ref σ", "R² true"
-        );
+            "estimate",
+            "n",
+            "R²",
+            "RMSE",
+            "max |err|",
+            "ref σ",
+            "R² true"
+        )?;
         for r in rows {
             let corrected = r
                 .r2_noise_corrected
                 .map_or_else(|| "—".to_string(), |v| format!("{v:.4}"));
-            println!(
+            outln!(
                 "{:<24} {:>8} {:>8.4} {:>10.4} {:>10.4} {:>9.4} {:>10}  {}",
                 r.estimate,
                 r.n,
@@ -181,22 +205,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 r.reference_noise,
                 corrected,
                 r.reference
-            );
+            )?;
         }
-        println!(
+        outln!(
             "R² true: against the noise-free reference, with the reference's white noise (ref σ) estimated from its sample-to-sample differences"
-        );
+        )?;
     }
-    for row in &abnormality {
-        println!(
+    for row in abnormality.iter().filter(|_| text) {
+        outln!(
             "motor abnormality {}: {} — {}",
             row.axis,
             row.state.label(),
             row.reason
-        );
+        )?;
     }
-    for note in &series.notes {
-        println!("note: {note}");
+    for note in series.notes.iter().filter(|_| text) {
+        outln!("note: {note}")?;
     }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::{outln, refuse_overwriting_inputs, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::fingerprint::{
     FrictionFingerprint, diagnose_preload, drift, fingerprint,
@@ -50,6 +51,14 @@ struct Report {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut inputs = vec![args.recording.as_path()];
+    inputs.extend(args.profile.as_deref());
+    // Saving the new baseline over the one compared with is how a baseline is renewed; the
+    // JSON report over it would lose it.
+    refuse_overwriting_inputs(&inputs, &[args.save_baseline.as_deref()])?;
+    inputs.extend(args.baseline.as_deref());
+    refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;
+    let text = text_report_wanted(args.json.as_deref());
     let profile = match &args.profile {
         Some(path) => MachineProfile::load(path)?,
         None => MachineProfile::twin_default(),
@@ -59,29 +68,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("the profile has no axis {}", args.axis))?;
     let recording = read_recording(&args.recording).context("cannot read recording")?;
     let current = fingerprint(&recording, args.axis)?;
-    println!(
-        "{} axis friction fingerprint ({} samples, coherence R² {:.3})",
-        current.axis, current.samples, current.coherence
-    );
-    println!(
-        "  Coulomb {:.4} N·m (+ {:.4} / − {:.4}), viscous {:.4} N·m/krpm, inertia {:.2e} kg·m², offset {:.4} N·m",
-        current.coulomb_Nm,
-        current.coulomb_positive_Nm,
-        current.coulomb_negative_Nm,
-        current.viscous_Nm_per_krpm,
-        current.inertia_kgm2,
-        current.offset_Nm
-    );
+    if text {
+        outln!(
+            "{} axis friction fingerprint ({} samples, coherence R² {:.3})",
+            current.axis,
+            current.samples,
+            current.coherence
+        )?;
+        outln!(
+            "  Coulomb {:.4} N·m (+ {:.4} / − {:.4}), viscous {:.4} N·m/krpm, inertia {:.2e} kg·m², offset {:.4} N·m",
+            current.coulomb_Nm,
+            current.coulomb_positive_Nm,
+            current.coulomb_negative_Nm,
+            current.viscous_Nm_per_krpm,
+            current.inertia_kgm2,
+            current.offset_Nm
+        )?;
+    }
     let mut report = Report {
         fingerprint: current.clone(),
         drift: Vec::new(),
         preload: None,
     };
     if let Some(path) = &args.baseline {
-        let text = std::fs::read_to_string(path)
+        let stored = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read baseline {}", path.display()))?;
-        let baseline: FrictionFingerprint = serde_json::from_str(&text)
+        let baseline: FrictionFingerprint = serde_json::from_str(&stored)
             .with_context(|| format!("{} is not a fingerprint baseline", path.display()))?;
+        baseline
+            .validate()
+            .map_err(|why| anyhow::anyhow!("the baseline {}: {why}", path.display()))?;
         anyhow::ensure!(
             baseline.axis == args.axis,
             "the baseline {} is of axis {}, not {}",
@@ -94,8 +110,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &baseline,
             axis_profile.limits.fingerprint_drift_fraction,
         );
-        for d in &report.drift {
-            println!(
+        for d in report.drift.iter().filter(|_| text) {
+            outln!(
                 "  {:<22} baseline {:>9.4}  now {:>9.4}  {:>+7.1} %{}",
                 d.figure,
                 d.baseline,
@@ -106,17 +122,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 } else {
                     ""
                 }
-            );
+            )?;
         }
         report.preload = diagnose_preload(&current, &baseline, axis_profile);
-        if let Some(p) = &report.preload {
-            println!("  preload: {:?} — {}", p.state, p.evidence);
+        if let Some(p) = report.preload.as_ref().filter(|_| text) {
+            outln!("  preload: {:?} — {}", p.state, p.evidence)?;
         }
     }
     if let Some(path) = &args.save_baseline {
         std::fs::write(path, serde_json::to_string_pretty(&current)? + "\n")
             .with_context(|| format!("cannot write {}", path.display()))?;
-        println!("  saved as the baseline {}", path.display());
+        if text {
+            outln!("  saved as the baseline {}", path.display())?;
+        }
     }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(path, &report)?;

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::{out, refuse_overwriting_inputs, text_report_wanted};
 use anyhow::Context;
 use servosight::fit::{
     Criterion, Design, Direction, FitReport, SelectionOptions, ols, parse_terms, select,
@@ -54,6 +55,7 @@ pub struct Args {
 
 /// Runs `servosight fit`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    refuse_overwriting_inputs(&[&args.data], &[args.json.as_deref()])?;
     let terms = parse_terms(&args.terms)?;
     if terms.is_empty() {
         anyhow::bail!("--terms lists only `const`: give at least one term to fit");
@@ -89,9 +91,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(selection) = selection {
         report = report.with_selection(selection);
     }
-    let json_to_stdout = args.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
-    if !json_to_stdout {
-        print!("{}", report.summary_table());
+    if text_report_wanted(args.json.as_deref()) {
+        out!("{}", report.summary_table())?;
     }
     if let Some(path) = &args.json {
         crate::servosight_cli::write_json(path, &report)?;

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::{out, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::signal::{Channel, Recording, RecordingError, RecordingReader};
 
@@ -52,14 +53,26 @@ struct Gap {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.gap_factor.is_finite() && args.gap_factor > 1.0,
+        "--gap-factor must be a number above 1 (a gap is a step longer than that many median \
+         steps), not {}",
+        args.gap_factor
+    );
+    refuse_overwriting_inputs(&[&args.file], &[args.json.as_deref()])?;
     let (mut summary, cut_short) = summarise_allowing_a_cut_last_line(&args.file, args.gap_factor)?;
     if let Some(note) = &cut_short {
         eprintln!("warning: {note}");
     }
     summary.last_line_cut_short = cut_short.is_some();
+    anyhow::ensure!(
+        summary.rows > 0,
+        "{} has a header but no data rows: nothing to summarise",
+        args.file.display()
+    );
     match &args.json {
         Some(path) => crate::servosight_cli::write_json(path, &summary)?,
-        None => print_table(&summary),
+        None => print_table(&summary)?,
     }
     Ok(())
 }
@@ -176,41 +189,42 @@ fn kind_of(channel: &Channel) -> &'static str {
     }
 }
 
-fn print_table(summary: &Summary) {
-    println!("{}", summary.file);
-    println!(
+fn print_table(summary: &Summary) -> anyhow::Result<()> {
+    outln!("{}", summary.file)?;
+    outln!(
         "  {} rows × {} columns, {:.1} s ({})",
         summary.rows,
         summary.columns,
         summary.duration_s,
         crate::servosight_cli::human_duration(summary.duration_s)
-    );
+    )?;
     match summary.sample_rate_hz {
-        Some(rate) => println!(
+        Some(rate) => outln!(
             "  sample rate {rate:.4} Hz (median step {:.6} s)",
             1.0 / rate
-        ),
-        None => println!("  sample rate: fewer than two distinct times"),
+        )?,
+        None => outln!("  sample rate: fewer than two distinct times")?,
     }
     for (key, value) in &summary.metadata {
         if key.is_empty() {
-            println!("  # {value}");
+            outln!("  # {value}")?;
         } else {
-            println!("  {key}: {value}");
+            outln!("  {key}: {value}")?;
         }
     }
     if summary.gaps.is_empty() {
-        println!("  no gaps");
+        outln!("  no gaps")?;
     } else {
-        println!("  {} gap(s):", summary.gaps.len());
+        outln!("  {} gap(s):", summary.gaps.len())?;
         for gap in summary.gaps.iter().take(20) {
-            println!(
+            outln!(
                 "    after t = {:.3} s: {:.3} s without samples",
-                gap.after_s, gap.length_s
-            );
+                gap.after_s,
+                gap.length_s
+            )?;
         }
         if summary.gaps.len() > 20 {
-            println!("    … {} more", summary.gaps.len() - 20);
+            outln!("    … {} more", summary.gaps.len() - 20)?;
         }
     }
     let width = summary
@@ -220,12 +234,17 @@ fn print_table(summary: &Summary) {
         .max()
         .unwrap_or(6)
         .max(6);
-    println!(
+    outln!(
         "  {:<width$}  {:>5}  {:>9}  {:>14}  {:>14}  {:>14}",
-        "column", "unit", "kind", "min", "max", "mean"
-    );
+        "column",
+        "unit",
+        "kind",
+        "min",
+        "max",
+        "mean"
+    )?;
     for c in &summary.column_summaries {
-        println!(
+        outln!(
             "  {:<width$}  {:>5}  {:>9}  {:>14.6}  {:>14.6}  {:>14.6}",
             c.name,
             c.unit.unwrap_or(""),
@@ -233,8 +252,9 @@ fn print_table(summary: &Summary) {
             c.min,
             c.max,
             c.mean
-        );
+        )?;
     }
+    Ok(())
 }
 
 /// An hour-by-hour summary of a shift on the twin: what ran, how hot it got, how far the spindle
@@ -262,11 +282,11 @@ pub fn print_day_summary(recording: &Recording) -> anyhow::Result<()> {
         .metadata_value("start_clock_h")
         .and_then(|v| v.parse().ok())
         .unwrap_or(0.0);
-    print!("{:>7}", "clock");
+    out!("{:>7}", "clock")?;
     for (label, _) in &columns {
-        print!("  {label:>11}");
+        out!("  {label:>11}")?;
     }
-    println!();
+    outln!()?;
     let hours = (recording.duration_s() / 3600.0).ceil() as usize;
     for hour in 0..hours {
         let (from, to) = (hour as f64 * 3600.0, (hour + 1) as f64 * 3600.0);
@@ -277,12 +297,12 @@ pub fn print_day_summary(recording: &Recording) -> anyhow::Result<()> {
             continue;
         }
         let clock = start_h + hour as f64;
-        print!("{:>4}:00", clock as u32 % 24);
+        out!("{:>4}:00", clock as u32 % 24)?;
         for (_, values) in &columns {
             let mean = rows.iter().map(|&i| values[i]).sum::<f64>() / rows.len() as f64;
-            print!("  {mean:>11.2}");
+            out!("  {mean:>11.2}")?;
         }
-        println!();
+        outln!()?;
     }
     if let Some(elongation) =
         recording.try_column(&reference_column(AxisId::S, "elongation_um", None))
@@ -292,10 +312,10 @@ pub fn print_day_summary(recording: &Recording) -> anyhow::Result<()> {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
                 (l.min(v), h.max(v))
             });
-        println!(
+        outln!(
             "spindle thermal elongation over the shift: {lo:.1} to {hi:.1} µm (range {:.1} µm)",
             hi - lo
-        );
+        )?;
     }
     Ok(())
 }

@@ -104,12 +104,90 @@ pub fn run() -> ExitCode {
     }
 }
 
+/// `println!` that returns an error instead of panicking when standard output cannot be
+/// written (a full disk, a closed file): `outln!(...)?`. A reader that goes away (a pipe into
+/// `head`) still ends the process quietly through SIGPIPE (see `main`).
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout(), $($arg)*)
+            .map_err(|error| anyhow::anyhow!("cannot write to standard output: {error}"))
+    }};
+}
+pub(crate) use outln;
+
+/// `print!` that returns an error instead of panicking, as [`outln!`].
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout(), $($arg)*)
+            .map_err(|error| anyhow::anyhow!("cannot write to standard output: {error}"))
+    }};
+}
+pub(crate) use out;
+
+/// True when `path` names standard output (`-`).
+pub fn is_stdout(path: &std::path::Path) -> bool {
+    path.as_os_str() == "-"
+}
+
+/// Whether a command prints its text report: not when its JSON goes to standard output, which
+/// must then hold the JSON alone so that it can be parsed.
+pub fn text_report_wanted(json: Option<&std::path::Path>) -> bool {
+    !json.is_some_and(is_stdout)
+}
+
+/// Refuses, before anything is written, an output that is the same file as one of the inputs
+/// (`-o day.csv` for the recording being read, `--json audit.jsonl` for the audit log): writing
+/// it would destroy data the command was asked to read. Standard output (`-`) and outputs that
+/// do not exist yet are never an input.
+pub fn refuse_overwriting_inputs(
+    inputs: &[&std::path::Path],
+    outputs: &[Option<&std::path::Path>],
+) -> anyhow::Result<()> {
+    for output in outputs.iter().flatten() {
+        if is_stdout(output) {
+            continue;
+        }
+        for input in inputs {
+            if same_file(input, output) {
+                anyhow::bail!(
+                    "{} is both an input and an output of this command: writing it would destroy \
+                     the data being read; choose another output path",
+                    output.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Two paths that name one existing file (through links, `..` or hard links on Unix).
+pub fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    let (Ok(meta_a), Ok(meta_b)) = (std::fs::metadata(a), std::fs::metadata(b)) else {
+        return false;
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        meta_a.dev() == meta_b.dev() && meta_a.ino() == meta_b.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (meta_a, meta_b);
+        matches!(
+            (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
+    }
+}
+
 /// Writes `value` as pretty JSON to `path`, or to stdout when `path` is `-`.
 pub fn write_json<T: serde::Serialize>(path: &std::path::Path, value: &T) -> anyhow::Result<()> {
     use anyhow::Context;
     let text = serde_json::to_string_pretty(value).context("serialising the JSON report")?;
-    if path.as_os_str() == "-" {
-        println!("{text}");
+    if is_stdout(path) {
+        outln!("{text}")?;
     } else {
         std::fs::write(path, text + "\n")
             .with_context(|| format!("cannot write JSON report {}", path.display()))?;

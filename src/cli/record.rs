@@ -42,6 +42,27 @@ struct Summary {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(seconds) = args.duration_s {
+        anyhow::ensure!(
+            seconds.is_finite() && seconds > 0.0,
+            "--duration-s must be a positive number of seconds, not {seconds}"
+        );
+    }
+    anyhow::ensure!(
+        args.status_every_s.is_finite() && args.status_every_s >= 0.0,
+        "--status-every-s must be 0 (never) or a positive number of seconds, not {}",
+        args.status_every_s
+    );
+    // The recording does not exist yet (the recorder refuses a name that does), so the JSON
+    // summary is compared with it by name.
+    if let Some(json) = &args.json
+        && std::path::absolute(json).ok() == std::path::absolute(&args.output).ok()
+    {
+        anyhow::bail!(
+            "--json {} would write the summary over the recording: choose another path",
+            json.display()
+        );
+    }
     let config = args.serial.config();
     let link = ControllerLink::modbus(config).context("cannot start the controller link")?;
     let mut recorder_config = RecorderConfig::new(&args.output);

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::out;
 use servosight::link::register_map;
 
 /// Arguments of `servosight register-map`.
@@ -18,7 +19,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.markdown {
-        print!("{}", register_map::markdown_tables());
+        out!("{}", register_map::markdown_tables())?;
         return Ok(());
     }
     let path = args.json.unwrap_or_else(|| PathBuf::from("-"));

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::outln;
 use anyhow::Context;
 use servosight::signal::{RecordingWriter, read_recording};
 use servosight::sim::{Effect, EffectSet, MachineParams, ScenarioKind, Twin, TwinConfig};
@@ -76,7 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_overrides(&overrides)
         .context("invalid --set/--noise")?;
     if args.print_machine {
-        println!("{}", serde_json::to_string_pretty(&machine)?);
+        outln!("{}", serde_json::to_string_pretty(&machine)?)?;
         return Ok(());
     }
     let hours = args.hours.or(match args.scenario {
@@ -100,6 +101,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let output = args
         .output
         .context("an output file is required (-o FILE.csv)")?;
+    anyhow::ensure!(
+        !crate::servosight_cli::is_stdout(&output),
+        "-o - is not supported: the twin writes its recording to a file (-o FILE.csv)"
+    );
     let started = std::time::Instant::now();
     let rows = write_simulation(config, &output)?;
     eprintln!(
@@ -126,15 +131,20 @@ pub fn write_simulation(config: TwinConfig, output: &std::path::Path) -> anyhow:
 
 /// `servosight day-summary`: the headless equivalent of the HMI — simulate a production day and summarise it.
 pub fn run_default_day() -> anyhow::Result<()> {
-    let dir = std::env::temp_dir().join("servosight");
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    // A directory of this run's own: `create_dir` fails on a name somebody else took, so the
+    // day is never written through a link planted under a shared, predictable name.
+    let stamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let dir = std::env::temp_dir().join(format!("servosight-day-{}-{stamp}", std::process::id()));
+    std::fs::create_dir(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let path = dir.join("production-day.csv");
     let config = TwinConfig::new(ScenarioKind::Production, Some(10.0), 1);
     let rows = write_simulation(config, &path)?;
     let recording = read_recording(&path)?;
-    println!(
+    outln!(
         "Simulated a production day on the twin: {rows} rows → {}",
         path.display()
-    );
+    )?;
     crate::servosight_cli::inspect::print_day_summary(&recording)
 }

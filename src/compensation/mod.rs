@@ -128,6 +128,22 @@ impl Request {
                 "{id} = {value} is not a number"
             )));
         }
+        // Backlash compensation adds lost motion back at a reversal; a negative amount would
+        // make the axis overshoot by it at every reversal.
+        if let Some((id, value)) = proposal
+            .changes
+            .iter()
+            .find(|(id, v)| matches!(id, CompensationId::Backlash(_)) && *v < 0.0)
+        {
+            return Err(CompensationError::Invalid(format!(
+                "{id} = {value} µm: a backlash compensation is never negative"
+            )));
+        }
+        if proposal.why.trim().is_empty() {
+            return Err(CompensationError::Invalid(
+                "the proposal does not say why it is needed".into(),
+            ));
+        }
         let mut hasher = Sha256::new();
         hasher.update(serde_json::to_string(&proposal).unwrap_or_default());
         hasher.update(operator.as_bytes());

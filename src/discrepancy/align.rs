@@ -119,9 +119,18 @@ impl<'a> Aligned<'a> {
                 real: describe_span(real),
             });
         };
+        for (recording, role) in [(sim, "simulation"), (real, "real recording")] {
+            if recording.len() > 1 && recording.median_step_s().is_none() {
+                return Err(DiscrepancyError::TimeStalls {
+                    role,
+                    source_name: recording.source().to_string(),
+                });
+            }
+        }
         let start = s0.max(r0);
         let end = s1.min(r1);
-        if end < start {
+        // An overlap of one instant is no overlap for an analysis over time.
+        if end <= start {
             return Err(DiscrepancyError::NoOverlap {
                 sim: describe_span(sim),
                 real: describe_span(real),

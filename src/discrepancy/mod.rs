@@ -84,6 +84,14 @@ pub enum DiscrepancyError {
         /// The real recording's span.
         real: String,
     },
+    /// A recording whose rows all carry one time stamp: it has no time grid to analyse on.
+    #[error("the {role} {source_name} does not advance in time: every row has the same time stamp")]
+    TimeStalls {
+        /// "simulation" or "real recording".
+        role: &'static str,
+        /// The recording's source.
+        source_name: String,
+    },
     /// Too few overlapping rows for a time-blocked analysis.
     #[error("only {rows} rows overlap in time; the analysis needs at least {needed}")]
     TooShort {
@@ -241,15 +249,34 @@ impl Default for Options {
     }
 }
 
+/// Most cross-validation folds: each held-out run is a block of the recording, and beyond a
+/// few dozen the blocks are shorter than the slow residuals they are meant to hold out whole.
+const MAX_FOLDS: usize = 64;
+
 impl Options {
     fn validate(&self) -> Result<(), DiscrepancyError> {
-        let checks: [(&'static str, f64, bool, &'static str); 5] = [
-            ("folds", self.folds as f64, self.folds >= 2, "at least 2"),
+        // The smallest p-value N surrogates can give is 1/(N + 1): with fewer than 1/α − 1 no
+        // finding could ever be significant, and "consistent" would be a foregone conclusion.
+        let surrogates_needed = (1.0 / self.alpha - 1.0 - 1e-9).ceil().max(1.0);
+        let checks: [(&'static str, f64, bool, &'static str); 6] = [
+            (
+                "folds",
+                self.folds as f64,
+                (2..=MAX_FOLDS).contains(&self.folds),
+                "between 2 and 64",
+            ),
             (
                 "surrogates",
                 self.surrogates as f64,
                 self.surrogates >= 1,
                 "at least 1",
+            ),
+            (
+                "surrogates",
+                self.surrogates as f64,
+                !self.alpha.is_finite() || self.surrogates as f64 >= surrogates_needed,
+                "at least 1/alpha − 1 (the smallest p-value N surrogates give is 1/(N + 1), \
+                 so with fewer nothing could ever be significant at alpha)",
             ),
             (
                 "alpha",

@@ -46,6 +46,9 @@ pub struct BacklashReport {
     pub backlash_um: f64,
     /// Per feed.
     pub by_speed: Vec<BacklashAtSpeed>,
+    /// Feeds whose moves showed no rise of the current at all (mm/min): no knee, so no
+    /// backlash at that feed; they count against the confidence.
+    pub feeds_without_a_rise: Vec<f64>,
     /// 0–1: 1 when every feed found a clear current rise and a narrow interval that agree.
     pub confidence: f64,
     /// Machine time of the test in the recording, s.
@@ -63,6 +66,9 @@ pub enum BacklashError {
         "{0}: no reciprocating moves of the {1} axis found (is this a backlash-test recording?)"
     )]
     NoMoves(String, AxisId),
+    /// Every row has the same time stamp: no moves can be timed.
+    #[error("{0}: every row has the same time stamp, so no move can be timed")]
+    TimeStalls(String),
     /// The lead is needed to turn feeds into motor speeds.
     #[error("screw lead must be positive, is {0} mm")]
     InvalidLead(f64),
@@ -94,6 +100,9 @@ pub fn analyse_backlash(
     if n < 10 {
         return Err(BacklashError::NoMoves(recording.source().to_string(), axis));
     }
+    if recording.median_step_s().is_none() {
+        return Err(BacklashError::TimeStalls(recording.source().to_string()));
+    }
     // The motor follows the command with the servo lag; find it by aligning motor and command
     // positions, then use the (noise-free) command shifted by that lag as the motor trajectory.
     let lag = servo_lag_samples(command, position);
@@ -121,6 +130,7 @@ pub fn analyse_backlash(
     groups.sort_by(|a, b| a.0.total_cmp(&b.0));
     let largest_um = moves.iter().map(|m| m.amplitude_um).fold(0.0, f64::max);
     let mut by_speed = Vec::new();
+    let mut feeds_without_a_rise = Vec::new();
     for (feed, list) in &groups {
         // Samples inside this group's moves (plus the lag, while the motor is still moving).
         // Only samples at constant velocity: during acceleration the inertia torque
@@ -139,6 +149,12 @@ pub fn analyse_backlash(
             largest_um * MAX_FRACTION_OF_LARGEST_MOVE,
         );
         let Some(fit) = fit else { continue };
+        // The current falling where the table should be driven is no knee: the best split of
+        // a flat or noisy current lands anywhere, so its "backlash" would mean nothing.
+        if fit.rise <= 0.0 {
+            feeds_without_a_rise.push(*feed);
+            continue;
+        }
         by_speed.push(BacklashAtSpeed {
             speed_rpm: feed / lead_mm,
             feed_mm_per_min: *feed,
@@ -165,8 +181,8 @@ pub fn analyse_backlash(
     let total: f64 = used.iter().map(|b| weight(b)).sum();
     let backlash_um = used.iter().map(|b| weight(b) * b.backlash_um).sum::<f64>() / total;
     // Confidence: share of feeds with a clear rise × how narrow and consistent the intervals are.
-    let clear_share =
-        by_speed.iter().filter(|b| b.rise_t > 5.0).count() as f64 / by_speed.len() as f64;
+    let clear_share = by_speed.iter().filter(|b| b.rise_t > 5.0).count() as f64
+        / (by_speed.len() + feeds_without_a_rise.len()) as f64;
     let width = used
         .iter()
         .map(|b| b.ci_high_um - b.ci_low_um)
@@ -181,6 +197,7 @@ pub fn analyse_backlash(
         axis,
         backlash_um,
         by_speed,
+        feeds_without_a_rise,
         confidence: clear_share * precision,
         test_duration_s: recording.duration_s(),
     })

@@ -72,14 +72,24 @@ pub enum CalibrationError {
     /// No database recording.
     #[error("no database recording given")]
     NoDatabase,
+    /// A database recording has no reference instrument columns to fit the estimators to.
+    #[error(
+        "{recording} has no reference columns (ref.*): the estimators are fitted to the \
+         reference instruments of the database, so there is nothing to calibrate from it"
+    )]
+    NoReferences {
+        /// The recording's source.
+        recording: String,
+    },
     /// A regression failed.
-    #[error("{estimate}: {source}")]
+    // The regression's error is part of the message and not a `source`, so that a chain
+    // printed whole (`{:#}`) does not say it twice.
+    #[error("{estimate}: {error}")]
     Fit {
         /// The model being fitted.
         estimate: String,
         /// The regression's error.
-        #[source]
-        source: FitError,
+        error: FitError,
     },
     /// A recording lacks what a model needs.
     #[error("{0}")]
@@ -258,6 +268,14 @@ pub fn calibrate(
     experiments: &[Recording],
 ) -> Result<(Calibration, CalibrationReport), CalibrationError> {
     let first = database.first().ok_or(CalibrationError::NoDatabase)?;
+    if let Some(bare) = database
+        .iter()
+        .find(|r| !r.names().iter().any(|n| n.starts_with("ref.")))
+    {
+        return Err(CalibrationError::NoReferences {
+            recording: bare.source().to_string(),
+        });
+    }
     let fitted_rate_hz = first.sample_rate_hz().unwrap_or(1.0);
     let mut calibration = Calibration {
         fitted_rate_hz,
@@ -689,9 +707,9 @@ fn fit_joined(
     experiment: &Rows<'_>,
     scoring: Scoring,
 ) -> Result<Fitted, CalibrationError> {
-    let err = |source: FitError| CalibrationError::Fit {
+    let err = |error: FitError| CalibrationError::Fit {
         estimate: estimate.to_string(),
-        source,
+        error,
     };
     let (n_db, n_exp) = (database.y.len(), experiment.y.len());
     let experiment_weight = n_db as f64 / n_exp as f64;
@@ -832,9 +850,9 @@ fn fit_columns(
     y: Vec<f64>,
     columns: Vec<(String, Vec<f64>)>,
 ) -> Result<Fitted, CalibrationError> {
-    let err = |source: FitError| CalibrationError::Fit {
+    let err = |error: FitError| CalibrationError::Fit {
         estimate: estimate.to_string(),
-        source,
+        error,
     };
     let design = Design::from_columns(target, y, columns).map_err(err)?;
     let fit = ols(&design).map_err(err)?;

@@ -50,6 +50,38 @@ pub struct FrictionFingerprint {
 }
 
 impl FrictionFingerprint {
+    /// Checks a fingerprint read back from a file (a stored baseline): every figure finite,
+    /// frictions and inertia not negative, the coherence an R² (at most 1). A baseline that
+    /// fails would make every later drift figure meaningless.
+    pub fn validate(&self) -> Result<(), String> {
+        let figures = [
+            ("coulomb_Nm", self.coulomb_Nm, true),
+            ("coulomb_positive_Nm", self.coulomb_positive_Nm, true),
+            ("coulomb_negative_Nm", self.coulomb_negative_Nm, true),
+            ("viscous_Nm_per_krpm", self.viscous_Nm_per_krpm, true),
+            ("inertia_kgm2", self.inertia_kgm2, true),
+            ("offset_Nm", self.offset_Nm, false),
+            ("coherence", self.coherence, false),
+        ];
+        for (name, value, not_negative) in figures {
+            if !value.is_finite() {
+                return Err(format!("{name} is {value}, not a finite number"));
+            }
+            if not_negative && value < 0.0 {
+                return Err(format!(
+                    "{name} is {value}: a friction or inertia is never negative"
+                ));
+            }
+        }
+        if self.coherence > 1.0 {
+            return Err(format!(
+                "coherence is {}: an R² is at most 1",
+                self.coherence
+            ));
+        }
+        Ok(())
+    }
+
     /// Friction torque at [`REFERENCE_SPEED_RPM`], N·m: Coulomb plus viscous there.
     pub fn friction_at_reference_Nm(&self) -> f64 {
         self.coulomb_Nm + self.viscous_Nm_per_krpm * REFERENCE_SPEED_RPM / 1000.0

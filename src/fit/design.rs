@@ -59,6 +59,10 @@ impl Design {
                 }
             }
         }
+        refuse_too_large(target, y_all)?;
+        for (term, values) in terms.iter().zip(&columns) {
+            refuse_too_large(term.name(), values)?;
+        }
         let kept: Vec<usize> = (0..recording.len()).filter(|&i| usable[i]).collect();
         let n = kept.len();
         let p = terms.len() + 1;
@@ -102,6 +106,7 @@ impl Design {
                 time_s: row as f64,
             });
         }
+        refuse_too_large(target, &y)?;
         for (j, (name, values)) in columns.into_iter().enumerate() {
             if names.contains(&name) {
                 return Err(FitError::RepeatedTerm { term: name });
@@ -120,6 +125,7 @@ impl Design {
                     time_s: row as f64,
                 });
             }
+            refuse_too_large(&name, &values)?;
             x.col_as_slice_mut(j + 1).copy_from_slice(&values);
             names.push(name);
         }
@@ -249,6 +255,24 @@ impl Design {
             time_s: rows.iter().map(|&i| self.time_s[i]).collect(),
             rows_dropped: self.rows_dropped,
         }
+    }
+}
+
+/// Largest magnitude a fitted value may have: squared and summed over a billion rows it stays
+/// finite (1e100² × 1e9 = 1e209), so every sum of squares behind R², F and the standard errors
+/// does too.
+const MAX_MAGNITUDE: f64 = 1e100;
+
+/// Refuses a column holding a value beyond [`MAX_MAGNITUDE`] (NaN, a lag's hole, is left to
+/// the caller).
+fn refuse_too_large(column: &str, values: &[f64]) -> Result<(), FitError> {
+    match values.iter().position(|v| v.abs() > MAX_MAGNITUDE) {
+        Some(row) => Err(FitError::TooLarge {
+            column: column.to_string(),
+            row,
+            value: values[row],
+        }),
+        None => Ok(()),
     }
 }
 

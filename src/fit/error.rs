@@ -24,6 +24,19 @@ pub enum FitError {
     /// A column the target or a term needs is missing from the recording.
     #[error(transparent)]
     Recording(#[from] RecordingError),
+    /// A value so large that the sums of squares behind every statistic would overflow.
+    #[error(
+        "`{column}` is {value:e} at row {row}: values beyond ±1e100 overflow the fit's sums of \
+         squares (a wrong unit or a garbled cell?)"
+    )]
+    TooLarge {
+        /// The target or term.
+        column: String,
+        /// Row index (0-based) in the recording.
+        row: usize,
+        /// The value.
+        value: f64,
+    },
     /// Two design columns have the same name.
     #[error("term `{term}` is listed twice")]
     RepeatedTerm {

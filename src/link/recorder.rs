@@ -76,6 +76,9 @@ pub enum RecorderError {
     /// Writing a row or a file failed.
     #[error(transparent)]
     Recording(#[from] RecordingError),
+    /// The file to record into exists already: a recorder never writes over a recording.
+    #[error("{0} exists already: a recorder never writes over a recording; choose another name")]
+    Exists(String),
     /// The recorder's own columns clash with the link's.
     #[error("the link already has a column named `{0}`")]
     ColumnClash(String),
@@ -182,12 +185,28 @@ impl Recorder {
         if let Some(writer) = self.writer.take() {
             writer.finish()?;
         }
-        let path = self.part_path(self.part);
+        let mut path = self.part_path(self.part);
+        // A later part whose name an earlier run took moves on to the next free number; the
+        // first file's name is the user's choice and is refused below instead.
+        while self.part > 0 && path.exists() {
+            self.part += 1;
+            path = self.part_path(self.part);
+        }
         let source = path.display().to_string();
-        let file = File::create(&path).map_err(|e| RecordingError::Io {
-            source_name: source.clone(),
-            error: e,
-        })?;
+        // `create_new`: a name that is taken (an earlier run's recording, or one of its later
+        // parts) is refused rather than truncated, so nothing recorded is ever lost.
+        let file = File::options()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(|e| match e.kind() {
+                std::io::ErrorKind::AlreadyExists => RecorderError::Exists(source.clone()),
+                _ => RecordingError::Io {
+                    source_name: source.clone(),
+                    error: e,
+                }
+                .into(),
+            })?;
         self.written = Arc::new(AtomicU64::new(0));
         let counting = CountingFile {
             file,
@@ -326,6 +345,39 @@ mod tests {
             sequence: Some(sequence),
             lost_before,
         }
+    }
+
+    /// A recorder started on a name an earlier run took refuses it and leaves the earlier
+    /// recording as it was; a later part whose name is taken moves on to a free number.
+    #[test]
+    fn never_writes_over_an_earlier_recording() {
+        let dir = tempfile::tempdir().unwrap();
+        let earlier = dir.path().join("run.csv");
+        std::fs::write(&earlier, "time_s,X.speed_rpm\n0,1\n").unwrap();
+        let error = Recorder::create(RecorderConfig::new(&earlier), &schema(), true)
+            .err()
+            .expect("an existing recording is refused");
+        assert!(error.to_string().contains("exists already"), "{error}");
+        assert_eq!(
+            std::fs::read_to_string(&earlier).unwrap(),
+            "time_s,X.speed_rpm\n0,1\n"
+        );
+
+        let taken_part = dir.path().join("new-0001.csv");
+        std::fs::write(&taken_part, "kept").unwrap();
+        let mut config = RecorderConfig::new(dir.path().join("new.csv"));
+        config.rotate_bytes = Some(2000);
+        let mut recorder = Recorder::create(config, &schema(), true).unwrap();
+        for i in 0..20_000u32 {
+            recorder
+                .record(&frame(f64::from(i) * 0.01, i + 1, 0))
+                .unwrap();
+        }
+        let paths = recorder.paths().to_vec();
+        recorder.finish().unwrap();
+        assert_eq!(std::fs::read_to_string(&taken_part).unwrap(), "kept");
+        assert!(!paths.contains(&taken_part), "{paths:?}");
+        assert_eq!(paths[1].file_name().unwrap(), "new-0002.csv");
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //! A physical value is `raw × scale`.
 
 use crate::compensation::{CompensationId, CompensationValues};
-use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH, CUT_DEPTH_PLAUSIBLE_RANGE_MM, TIME};
+use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH, TIME, plausible_range_of};
 use crate::signal::{AxisId, Channel, Quantity, Schema, axis_column};
 
 /// Version of this map; the controller reports it at [`MAP_VERSION_REGISTER`] and the client
@@ -64,7 +64,7 @@ pub const SAMPLE_BLOCK_LEN: u16 = AXIS_BLOCKS_START + AXIS_BLOCK_LEN * MAPPED_AX
 pub const AMBIENT_COUNTS_PER_UNIT: f64 = 100.0;
 /// Counts per mm of the depth-of-cut register. 1 µm resolution is finer than any programmed
 /// depth; a u16 then spans 0 to 65.535 mm, well beyond the plausible range
-/// ([`CUT_DEPTH_PLAUSIBLE_RANGE_MM`], 0 to 50 mm), so the top of the register (0xFFFF, the
+/// ([`crate::signal::channel::CUT_DEPTH_PLAUSIBLE_RANGE_MM`], 0 to 50 mm), so the top of the register (0xFFFF, the
 /// usual "no value" or a garbled word) is refused on decode rather than read as a cut.
 pub const CUT_DEPTH_COUNTS_PER_MM: f64 = 1000.0;
 
@@ -227,14 +227,6 @@ pub const MACHINE_FIELDS: [MachineField; 3] = [
         counts_per_unit: CUT_DEPTH_COUNTS_PER_MM,
     },
 ];
-
-/// The plausible range of a sample column: the format's range for the channels it knows, and
-/// for the depth of cut (a column the format keeps as a plain number) its own range.
-fn plausible_range(column: &str) -> Option<(f64, f64)> {
-    Channel::parse(column)
-        .plausible_range()
-        .or_else(|| (column == CUT_DEPTH).then_some(CUT_DEPTH_PLAUSIBLE_RANGE_MM))
-}
 
 // ---- holding registers (function codes 03 read, 16 write) -------------------------------
 
@@ -458,7 +450,7 @@ pub fn decode_sample(registers: &[u16]) -> Result<DecodedSample, MapError> {
     let columns = sample_columns();
     let check = |register: u16, value: f64, index: usize| -> Result<f64, MapError> {
         let column = &columns[index + 1];
-        match plausible_range(column) {
+        match plausible_range_of(column) {
             Some((low, high)) if !(low..=high).contains(&value) => Err(MapError::Implausible {
                 register,
                 column: column.clone(),
@@ -896,6 +888,7 @@ pub fn markdown_tables() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::signal::channel::CUT_DEPTH_PLAUSIBLE_RANGE_MM;
 
     fn sample_values() -> Vec<f64> {
         let columns = sample_columns();

@@ -20,7 +20,7 @@ pub const CUT_DEPTH: &str = "cut_depth_mm";
 /// The plausible range of [`CUT_DEPTH`], mm. The twin cuts 0.2 to 4 mm, heavy roughing on a
 /// big lathe takes a few tens of mm at most; a depth outside this range is a garbled value,
 /// not a cut. (The format keeps `cut_depth_mm` as a plain column, so
-/// [`Channel::plausible_range`] does not know it; the controller link checks this range.)
+/// [`Channel::plausible_range`] does not know it; [`plausible_range_of`] does.)
 pub const CUT_DEPTH_PLAUSIBLE_RANGE_MM: (f64, f64) = (0.0, 50.0);
 /// Prefix of reference-instrument columns, used for calibration and validation only.
 pub const REFERENCE_PREFIX: &str = "ref.";
@@ -271,12 +271,31 @@ impl Channel {
     /// The plausible value range of a column the format knows, `None` for columns it does not.
     pub fn plausible_range(&self) -> Option<(f64, f64)> {
         match self {
+            // Seconds: a run's clock or a Unix time; beyond ±300 years it is garbage.
+            Channel::Time => Some((-1.0e10, 1.0e10)),
             Channel::Servo { quantity, .. } => Some(quantity.plausible_range()),
             Channel::Ambient => Some((-50.0, 80.0)),
             Channel::Coolant => Some((0.0, 1.0)),
-            _ => None,
+            // A reference instrument measures a temperature of the machine (the range of a
+            // winding sensor) or a displacement (straightness, growth, backlash: ±100 mm).
+            Channel::Reference { quantity, .. } => match Channel::unit_of(quantity) {
+                Some("°C") => Some(Quantity::StatorTemp.plausible_range()),
+                Some("µm") => Some((-1.0e8, 1.0e8)),
+                Some("mm") => Some((-1.0e5, 1.0e5)),
+                _ => None,
+            },
+            Channel::Unknown => None,
         }
     }
+}
+
+/// The plausible range of a column: the format's range for the channels it knows
+/// ([`Channel::plausible_range`]), and for the depth of cut (a column the format keeps as a
+/// plain number) [`CUT_DEPTH_PLAUSIBLE_RANGE_MM`]. A value outside it is refused on read.
+pub fn plausible_range_of(column: &str) -> Option<(f64, f64)> {
+    Channel::parse(column)
+        .plausible_range()
+        .or_else(|| (column == CUT_DEPTH).then_some(CUT_DEPTH_PLAUSIBLE_RANGE_MM))
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::channel::{Channel, TIME};
+use super::channel::{TIME, plausible_range_of};
 use super::error::{Location, RecordingError};
 
 /// The ordered column names of a recording or a frame stream, with a name → index map.
@@ -68,10 +68,7 @@ impl Schema {
                 });
             }
         }
-        let ranges = names
-            .iter()
-            .map(|n| Channel::parse(n).plausible_range())
-            .collect();
+        let ranges = names.iter().map(|n| plausible_range_of(n)).collect();
         Ok(Schema {
             inner: Arc::new(SchemaInner {
                 names,

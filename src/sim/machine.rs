@@ -686,6 +686,12 @@ impl MachineParams {
         if !(0.0..=1.0).contains(&self.measurement.correlated_fraction) {
             return Err("measurement.correlated_fraction must be between 0 and 1".into());
         }
+        if !(self.measurement.noise_scale.is_finite() && self.measurement.noise_scale >= 0.0) {
+            return Err(format!(
+                "measurement.noise_scale must be 0 (noise-free) or positive, is {}",
+                self.measurement.noise_scale
+            ));
+        }
         if self.measurement.delay_s < 0.0 || self.x_axis.backlash_um < 0.0 {
             return Err("measurement.delay_s and x_axis.backlash_um cannot be negative".into());
         }
