@@ -887,6 +887,50 @@ fn the_command_reports_bad_input_in_one_line() {
     }
 }
 
+/// An FEA-like export holds the target alone: the report says the room the simulation
+/// assumed is unknown and how the room was measured instead, rather than leave the room's
+/// gain to be read as if both rooms were known.
+#[test]
+fn a_simulation_without_the_room_is_said_to_be_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim.csv");
+    let real = dir.path().join("real.csv");
+    let json = dir.path().join("report.json");
+    warming_stator_csv(&sim, 600, 2.0, 0.0);
+    let text = std::fs::read_to_string(&sim).unwrap();
+    let with_room: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, line)| match i {
+            0 => format!("{line},ambient_C"),
+            _ => format!("{line},{}", 20.0 + 0.001 * i as f64),
+        })
+        .collect();
+    std::fs::write(&real, with_room.join("\n") + "\n").unwrap();
+    let run = discrepancy_command(&sim, &real, "S.stator_temp_C", &["--json", arg(&json)], &[]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let note = report["alignment"]["note"].as_str().unwrap();
+    assert!(
+        note.contains("the simulation has no ambient_C column"),
+        "{note}"
+    );
+    // Both files with the room: nothing to say.
+    let run = discrepancy_command(
+        &real,
+        &real,
+        "S.stator_temp_C",
+        &["--json", arg(&json)],
+        &[],
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let note = report["alignment"]["note"].as_str().unwrap();
+    assert!(!note.contains("no ambient_C"), "{note}");
+}
+
 /// Writes `rows` rows of a spindle stator warming by a kelvin (τ 10 min), one every `step_s`
 /// seconds, with `wobble` K of a slow sine on top (the "real" one's mismatch).
 pub fn warming_stator_csv(path: &std::path::Path, rows: usize, step_s: f64, wobble: f64) {

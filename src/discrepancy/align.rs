@@ -4,6 +4,7 @@
 use super::DiscrepancyError;
 use super::censor::Censoring;
 use crate::signal::Recording;
+use crate::signal::channel::AMBIENT;
 
 /// Fewest overlapping rows an analysis accepts.
 pub const MIN_ROWS: usize = 60;
@@ -241,6 +242,20 @@ impl<'a> Aligned<'a> {
             joined
         } else {
             format!("read averaged ({}); {joined}", averaged.join(", "))
+        };
+        // An export of the target alone (as FEA tools write) does not say what room the
+        // simulation assumed: the room's corrections then measure the real room from its mean,
+        // and a temperature's excess from the real room, which the reader should know.
+        let joined = if self.real.try_column(AMBIENT).is_some()
+            && self.sim.try_column(AMBIENT).is_none()
+        {
+            format!(
+                "{joined}; the simulation has no {AMBIENT} column, so the room it assumed is unknown: \
+                 the room's difference is taken from the real room's mean, and a temperature's \
+                 excess over the real room"
+            )
+        } else {
+            joined
         };
         match self.censoring {
             Some(c) => format!(
