@@ -22,13 +22,22 @@ pub enum Command {
         /// Write `{entries, head_hash}` as JSON here ("-" for stdout).
         #[arg(long)]
         json: Option<PathBuf>,
+        /// A head hash printed by an earlier verify: fails unless the log still holds that
+        /// entry (the chain alone cannot show entries cut from its end, or an emptied log).
+        #[arg(long, value_name = "HASH")]
+        expect_head: Option<String>,
     },
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
-        Command::Verify { log, json } => {
-            let report = audit::verify(&log)?;
+        Command::Verify {
+            log,
+            json,
+            expect_head,
+        } => {
+            crate::servosight_cli::refuse_overwriting_inputs(&[&log], &[json.as_deref()])?;
+            let report = audit::verify_holding(&log, expect_head.as_deref())?;
             match json {
                 Some(path) => crate::servosight_cli::write_json(&path, &report)?,
                 None => outln!(

@@ -123,6 +123,19 @@ pub enum AuditError {
         /// What is wrong there.
         reason: String,
     },
+    /// The log no longer holds an entry it held before: its end was cut or it was replaced.
+    #[error(
+        "{path}: no entry has the head {head} read earlier (the log now holds {entries} \
+         entries): entries were removed from its end, or the log was replaced"
+    )]
+    LostHead {
+        /// The log.
+        path: String,
+        /// The head hash expected.
+        head: String,
+        /// Entries the log holds now.
+        entries: u64,
+    },
 }
 
 /// The result of a successful verification.
@@ -145,6 +158,27 @@ fn entry_hash(entry: &AuditEntry) -> String {
 
 /// Checks every line of the log; the first broken one is the error.
 pub fn verify(path: &Path) -> Result<VerifyReport, AuditError> {
+    verify_holding(path, None)
+}
+
+/// [`verify`], and that the log still holds the entry whose hash is `head`: a head read
+/// earlier (printed by `audit verify` at the end of a shift, say). A chain cannot show on its
+/// own that entries were cut from its end, or that the whole log was emptied; an earlier head
+/// it no longer holds does.
+pub fn verify_holding(path: &Path, head: Option<&str>) -> Result<VerifyReport, AuditError> {
+    let report = verify_chain(path, head)?;
+    match head {
+        Some(head) if !report.1 => Err(AuditError::LostHead {
+            path: path.display().to_string(),
+            head: head.to_string(),
+            entries: report.0.entries,
+        }),
+        _ => Ok(report.0),
+    }
+}
+
+/// The chain check; also whether an entry (or the empty log's genesis) has the hash `head`.
+fn verify_chain(path: &Path, head: Option<&str>) -> Result<(VerifyReport, bool), AuditError> {
     let name = path.display().to_string();
     let file = File::open(path).map_err(|error| AuditError::Io {
         path: name.clone(),
@@ -152,6 +186,7 @@ pub fn verify(path: &Path) -> Result<VerifyReport, AuditError> {
     })?;
     let mut prev_hash = GENESIS_HASH.to_string();
     let mut entries = 0u64;
+    let mut holds_head = head == Some(GENESIS_HASH);
     for (i, line) in BufReader::new(file).lines().enumerate() {
         let line_no = i as u64 + 1;
         let broken = |reason: String| AuditError::Broken {
@@ -188,13 +223,17 @@ pub fn verify(path: &Path) -> Result<VerifyReport, AuditError> {
                 "the line is not in canonical form (it was edited)".into(),
             ));
         }
+        holds_head |= head == Some(entry.hash.as_str());
         prev_hash = entry.hash;
         entries += 1;
     }
-    Ok(VerifyReport {
-        entries,
-        head_hash: prev_hash,
-    })
+    Ok((
+        VerifyReport {
+            entries,
+            head_hash: prev_hash,
+        },
+        holds_head,
+    ))
 }
 
 /// An open audit log, verified on open, appended to with every entry synced to disk.
@@ -351,6 +390,49 @@ mod tests {
         assert_eq!(format_utc(0, 0), "1970-01-01T00:00:00.000Z");
         assert_eq!(format_utc(951_782_400, 5), "2000-02-29T00:00:00.005Z");
         assert_eq!(format_utc(1_700_000_000, 0), "2023-11-14T22:13:20.000Z");
+    }
+
+    /// Cutting entries from the end, or emptying the log, leaves a chain that is intact on
+    /// its own; a head read before the cut is what shows it.
+    #[test]
+    fn a_cut_end_is_caught_by_an_earlier_head() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("audit.jsonl");
+        let mut log = AuditLog::open(&path).unwrap();
+        for outcome in [Outcome::Applied, Outcome::Refused, Outcome::Applied] {
+            log.append(content(outcome)).unwrap();
+        }
+        drop(log);
+        let full = verify(&path).unwrap();
+        let original = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = original.lines().collect();
+        std::fs::write(
+            &path,
+            format!(
+                "{}
+{}
+",
+                lines[0], lines[1]
+            ),
+        )
+        .unwrap();
+        let cut = verify(&path).unwrap();
+        assert_eq!(cut.entries, 2, "the cut chain is intact on its own");
+        assert!(matches!(
+            verify_holding(&path, Some(&full.head_hash)),
+            Err(AuditError::LostHead { entries: 2, .. })
+        ));
+        // A head the log still holds (an earlier entry's) passes.
+        assert_eq!(
+            verify_holding(&path, Some(&cut.head_hash)).unwrap().entries,
+            2
+        );
+        std::fs::write(&path, "").unwrap();
+        assert_eq!(verify(&path).unwrap().entries, 0);
+        assert!(matches!(
+            verify_holding(&path, Some(&full.head_hash)),
+            Err(AuditError::LostHead { entries: 0, .. })
+        ));
     }
 
     #[test]
