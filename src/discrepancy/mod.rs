@@ -696,22 +696,28 @@ fn analyse_with(
     let accepted = std::mem::take(&mut joint.accepted);
     let active = std::mem::take(&mut joint.active);
     // Which steps were withdrawn, in step order (for the trace).
-    let withdrawn: Vec<bool> = {
+    let mut withdrawn: Vec<bool> = {
         let mut flags = active.iter().map(|a| !a);
         steps
             .iter()
             .map(|s| s.accepted && flags.next().unwrap_or(false))
             .collect()
     };
-    let selected: Vec<Selected> = steps
+    let mut selected: Vec<(usize, Selected)> = steps
         .iter()
-        .filter(|s| s.accepted)
+        .enumerate()
+        .filter(|(_, s)| s.accepted)
         .zip(accepted.into_iter().zip(active))
         .filter(|(_, (_, active))| *active)
-        .map(|(step, ((family, theta), _))| Selected {
-            family,
-            theta,
-            step: step.clone(),
+        .map(|((index, step), ((family, theta), _))| {
+            (
+                index,
+                Selected {
+                    family,
+                    theta,
+                    step: step.clone(),
+                },
+            )
         })
         .collect();
     let ctx_of = |family: usize| {
@@ -721,12 +727,54 @@ fn analyse_with(
             &ctx
         }
     };
+    let full_blocks = Blocks::new(n, options.folds, options.blocks_per_fold);
+    let real_mean = mean(&aligned.real_target);
+    let ss_total: f64 = aligned
+        .real_target
+        .iter()
+        .map(|v| (v - real_mean).powi(2))
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    // A correction chosen on the selection's bin means may add nothing once the joint model is
+    // fitted on every row: its held-out share there is zero or less (a friction step of a
+    // hundredth of the noise beside a delay). Naming physics that predicts nothing would be a
+    // claim the report's own figures contradict, so the weakest such correction is withdrawn
+    // and the rest judged again without it.
+    let mut selected_columns: Vec<Vec<Vec<f64>>> = selected
+        .iter()
+        .map(|(_, s)| build(&families[s.family], ctx_of(s.family), &s.theta))
+        .collect();
+    while let Some(weakest) = {
+        let quality_without = |left_out: Option<usize>| {
+            let raw: Vec<Vec<f64>> = selected_columns
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| Some(*k) != left_out)
+                .flat_map(|(_, c)| c.iter().cloned())
+                .collect();
+            let (standard, _) = standardised(&raw);
+            let ones = vec![1.0; n];
+            let mut design: Vec<&[f64]> = vec![&ones];
+            design.extend(standard.iter().map(|c| c.as_slice()));
+            held_out_quality(&design, &residual, &full_blocks, ss_total).r2
+        };
+        let all = quality_without(None);
+        selected
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, s))| matches!(families[s.family].kind, Kind::Physics(_)))
+            .map(|(k, _)| (k, all - quality_without(Some(k))))
+            .filter(|(_, share)| *share <= 0.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(k, _)| k)
+    } {
+        let (step_index, _) = selected.remove(weakest);
+        selected_columns.remove(weakest);
+        withdrawn[step_index] = true;
+    }
+    let selected: Vec<Selected> = selected.into_iter().map(|(_, s)| s).collect();
 
     // Final model on all rows: offset + every selected correction.
-    let selected_columns: Vec<Vec<Vec<f64>>> = selected
-        .iter()
-        .map(|s| build(&families[s.family], ctx_of(s.family), &s.theta))
-        .collect();
     let ones = vec![1.0; n];
     let raw: Vec<Vec<f64>> = selected_columns.iter().flatten().cloned().collect();
     let (standard, scales) = standardised(&raw);
@@ -751,14 +799,6 @@ fn analyse_with(
             .sum::<f64>();
 
     // Held-out figures after each accepted step, on all rows.
-    let full_blocks = Blocks::new(n, options.folds, options.blocks_per_fold);
-    let real_mean = mean(&aligned.real_target);
-    let ss_total: f64 = aligned
-        .real_target
-        .iter()
-        .map(|v| (v - real_mean).powi(2))
-        .sum::<f64>()
-        .max(f64::MIN_POSITIVE);
     let mut held_out = Vec::with_capacity(selected.len() + 1);
     let mut cv_residual = residual.clone();
     let mut offsets = vec![0usize];
