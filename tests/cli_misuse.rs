@@ -426,3 +426,38 @@ fn a_feed_whose_current_never_rises_reports_no_backlash() {
     // A feed that found nothing still counts against the confidence.
     assert!(report["confidence"].as_f64().unwrap() < 0.8, "{report}");
 }
+
+/// Half an hour of DOE cannot pin down the room's 4.5 h lag: the profile is written (it is the
+/// best those data allow) and stderr says why its estimates may extrapolate.
+#[test]
+fn a_database_shorter_than_the_lags_its_models_read_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let database = dir.path().join("db.csv");
+    let profile = dir.path().join("profile.toml");
+    let run = servosight(&[
+        "simulate",
+        "--scenario",
+        "doe",
+        "--hours",
+        "0.5",
+        "--seed",
+        "1",
+        "-o",
+        arg(&database),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let run = servosight(&[
+        "calibrate",
+        "--database",
+        arg(&database),
+        "-o",
+        arg(&profile),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(profile.exists());
+    let warning = stderr(&run);
+    assert!(
+        warning.contains("warning: the database spans 0.5 h, less than the slowest lag"),
+        "{warning}"
+    );
+}

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use crate::servosight_cli::{outln, refuse_overwriting_inputs, same_file, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::calibration::{CorrectionForm, calibrate};
+use servosight::estimators::models::AMBIENT_LAG_TAUS_S;
 use servosight::profile::MachineProfile;
 use servosight::signal::read_recording;
 
@@ -60,6 +61,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     profile.calibration = Some(calibration);
     profile.validate("the calibrated profile")?;
     profile.save(&args.output)?;
+    // Written, since it is the best the data allow, but a model that predicts its own held-out
+    // blocks poorly is said to on stderr: a database too short or too uniform (half an hour of
+    // one program) fits intercepts far from any temperature the machine reaches.
+    // The room's lags are features named by their time constant (`ambient_lag_270min`).
+    let database_s: f64 = database.iter().map(|r| r.duration_s()).sum();
+    let slowest_read = AMBIENT_LAG_TAUS_S
+        .iter()
+        .filter(|&&tau| tau > database_s)
+        .filter(|&&tau| {
+            let feature = format!("ambient_lag_{:.0}min", tau / 60.0);
+            report.models.iter().any(|m| m.equation.contains(&feature))
+        })
+        .copied()
+        .fold(None, |slowest: Option<f64>, tau| {
+            Some(slowest.map_or(tau, |s| s.max(tau)))
+        });
+    if let Some(tau) = slowest_read {
+        eprintln!(
+            "warning: the database spans {:.1} h, less than the slowest lag the models read \
+             ({:.1} h, the room through the machine's mass): over so short a span such a lag \
+             is nearly a constant and its coefficients extrapolate; a DOE of a day or more \
+             (simulate --scenario doe runs 24 h) pins them down",
+            database_s / 3600.0,
+            tau / 3600.0
+        );
+    }
+    for m in report.models.iter().filter(|m| m.cv_r2 < WEAK_CV_R2) {
+        eprintln!(
+            "warning: {} predicts its held-out blocks poorly (CV R² {:.3}): the database may be \
+             too short or too uniform for it; check its estimates before trusting them",
+            m.estimate, m.cv_r2
+        );
+    }
     if !text_report_wanted(args.json.as_deref()) {
         return crate::servosight_cli::write_json(std::path::Path::new("-"), &report);
     }
@@ -111,6 +145,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// Below this held-out R² a calibrated model is flagged: it predicts its held-out blocks worse
+/// than their mean would. (A threshold any higher would flag sound models whose target is
+/// noisy by nature: the twin's torque ratios hold out at 0.39–0.53.)
+const WEAK_CV_R2: f64 = 0.0;
 
 /// A recording listed twice (twice as a database, or as a database and an experiment) would
 /// count its rows twice and make every model's statistics claim more evidence than there is.
