@@ -283,7 +283,7 @@ fn option_values_nobody_can_mean_are_refused_and_nothing_is_written() {
                 "-o",
                 arg(&program),
             ],
-            "--why is empty",
+            "does not say why",
         ),
     ];
     for (args, expected) in &cases {
@@ -460,4 +460,96 @@ fn a_database_shorter_than_the_lags_its_models_read_is_warned_of() {
         warning.contains("warning: the database spans 0.5 h, less than the slowest lag"),
         "{warning}"
     );
+}
+
+#[test]
+fn proposals_and_baselines_that_cannot_be_meant_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let proposal = dir.path().join("p.json");
+    // A negative backlash compensation would overshoot at every reversal: refused when the
+    // proposal is written, not only when it is pushed.
+    let run = servosight(&[
+        "compensate",
+        "propose",
+        "--set",
+        "backlash.X=-5",
+        "--why",
+        "measured",
+        "--evidence",
+        "test",
+        "-o",
+        arg(&proposal),
+    ]);
+    let error = one_line_failure(&run);
+    assert!(error.contains("never negative"), "{error}");
+    assert!(!proposal.exists());
+
+    // A stored baseline with a negative friction is not a baseline to trend against.
+    let warmup = simulate(dir.path(), "warmup.csv", "warmup", "0.2");
+    let baseline = dir.path().join("baseline.json");
+    let run = servosight(&[
+        "fingerprint",
+        "--recording",
+        arg(&warmup),
+        "--axis",
+        "X",
+        "--save-baseline",
+        arg(&baseline),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let mut stored: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&baseline).unwrap()).unwrap();
+    stored["coulomb_Nm"] = serde_json::json!(-0.2);
+    std::fs::write(&baseline, stored.to_string()).unwrap();
+    let run = servosight(&[
+        "fingerprint",
+        "--recording",
+        arg(&warmup),
+        "--axis",
+        "X",
+        "--baseline",
+        arg(&baseline),
+    ]);
+    let error = one_line_failure(&run);
+    assert!(
+        error.contains("coulomb_Nm") && error.contains("never negative"),
+        "{error}"
+    );
+}
+
+#[test]
+fn two_outputs_naming_one_file_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let day = simulate(dir.path(), "day.csv", "production", "0.05");
+    let out = dir.path().join("out.json");
+    let profile = twin_profile();
+    let run = servosight(&[
+        "estimate",
+        "--profile",
+        arg(&profile),
+        "--recording",
+        arg(&day),
+        "-o",
+        arg(&out),
+        "--json",
+        arg(&out),
+    ]);
+    let error = one_line_failure(&run);
+    assert!(error.contains("two outputs"), "{error}");
+    assert!(!out.exists());
+    let run = servosight(&[
+        "discrepancy",
+        "--sim",
+        arg(&day),
+        "--real",
+        arg(&day),
+        "--target",
+        "X.stator_temp_C",
+        "--json",
+        "-",
+        "--plot-data",
+        "-",
+    ]);
+    let error = one_line_failure(&run);
+    assert!(error.contains("only one output"), "{error}");
 }

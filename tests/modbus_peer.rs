@@ -1012,6 +1012,37 @@ fn compensate_cli_applies_with_an_approver_and_audit_verify_catches_an_edit() {
     assert!(verify.status.success());
     let report: serde_json::Value = serde_json::from_slice(&verify.stdout).unwrap();
     assert_eq!(report["entries"], 2, "one refusal, one applied step");
+    // The head read now (given in capitals) holds while the log holds its entry; a copy cut
+    // back to its first entry is a chain intact on its own, and no longer holds it.
+    let head = report["head_hash"].as_str().unwrap().to_string();
+    let upper = head.to_ascii_uppercase();
+    let held = run(
+        &["audit", "verify", &path(&audit), "--expect-head", &upper],
+        "",
+    );
+    assert!(
+        held.status.success(),
+        "{}",
+        String::from_utf8_lossy(&held.stderr)
+    );
+    let text = std::fs::read_to_string(&audit).unwrap();
+    let cut_copy = dir.path().join("cut.jsonl");
+    std::fs::write(&cut_copy, format!("{}\n", text.lines().next().unwrap())).unwrap();
+    assert!(
+        run(&["audit", "verify", &path(&cut_copy)], "")
+            .status
+            .success()
+    );
+    let cut = run(
+        &["audit", "verify", &path(&cut_copy), "--expect-head", &head],
+        "",
+    );
+    assert!(!cut.status.success());
+    assert!(
+        String::from_utf8_lossy(&cut.stderr).contains("no entry has the head"),
+        "{}",
+        String::from_utf8_lossy(&cut.stderr)
+    );
     // Make the refusal look approved: the chain breaks at that line.
     let text = std::fs::read_to_string(&audit).unwrap();
     std::fs::write(&audit, text.replacen("\"refused\"", "\"applied\"", 1)).unwrap();

@@ -37,6 +37,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             expect_head,
         } => {
             crate::servosight_cli::refuse_overwriting_inputs(&[&log], &[json.as_deref()])?;
+            let expect_head = expect_head
+                .map(|head| {
+                    let head = head.trim().to_ascii_lowercase();
+                    anyhow::ensure!(
+                        head.len() == 64 && head.chars().all(|c| c.is_ascii_hexdigit()),
+                        "--expect-head must be a head hash as `audit verify` prints it (64 hex \
+                         digits), not `{head}`"
+                    );
+                    Ok(head)
+                })
+                .transpose()?;
             let report = audit::verify_holding(&log, expect_head.as_deref())?;
             match json {
                 Some(path) => crate::servosight_cli::write_json(&path, &report)?,

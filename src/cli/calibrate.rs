@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use crate::servosight_cli::{outln, refuse_overwriting_inputs, same_file, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::calibration::{CorrectionForm, calibrate};
-use servosight::estimators::models::AMBIENT_LAG_TAUS_S;
+use servosight::estimators::models::{AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S};
 use servosight::profile::MachineProfile;
 use servosight::signal::read_recording;
 
@@ -35,14 +35,18 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let inputs: Vec<&std::path::Path> = args
+    let recordings: Vec<&std::path::Path> = args
         .database
         .iter()
         .chain(&args.experiments)
-        .chain(&args.profile)
         .map(PathBuf::as_path)
         .collect();
-    refuse_overwriting_inputs(&inputs, &[Some(&args.output), args.json.as_deref()])?;
+    refuse_overwriting_inputs(&recordings, &[Some(&args.output), args.json.as_deref()])?;
+    // The calibrated profile written over the one it started from renews it (that one is read
+    // first); the report written over it would lose it.
+    let mut with_profile = recordings.clone();
+    with_profile.extend(args.profile.as_deref());
+    refuse_overwriting_inputs(&with_profile, &[args.json.as_deref()])?;
     refuse_a_recording_given_twice(&args.database, &args.experiments)?;
     let mut profile = match &args.profile {
         Some(path) => MachineProfile::load(path)?,
@@ -64,16 +68,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Written, since it is the best the data allow, but a model that predicts its own held-out
     // blocks poorly is said to on stderr: a database too short or too uniform (half an hour of
     // one program) fits intercepts far from any temperature the machine reaches.
-    // The room's lags are features named by their time constant (`ambient_lag_270min`).
     let database_s: f64 = database.iter().map(|r| r.duration_s()).sum();
     let slowest_read = AMBIENT_LAG_TAUS_S
         .iter()
-        .filter(|&&tau| tau > database_s)
-        .filter(|&&tau| {
-            let feature = format!("ambient_lag_{:.0}min", tau / 60.0);
-            report.models.iter().any(|m| m.equation.contains(&feature))
-        })
-        .copied()
+        .zip(AMBIENT_LAG_FEATURES)
+        .filter(|(tau, _)| **tau > database_s)
+        .filter(|(_, feature)| report.models.iter().any(|m| m.equation.contains(feature)))
+        .map(|(tau, _)| *tau)
         .fold(None, |slowest: Option<f64>, tau| {
             Some(slowest.map_or(tau, |s| s.max(tau)))
         });

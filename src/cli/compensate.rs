@@ -150,10 +150,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn propose(args: ProposeArgs) -> anyhow::Result<()> {
     // The evidence is often a file (a recording, a report): never write the proposal over it.
     refuse_overwriting_inputs(&[Path::new(&args.evidence)], &[Some(&args.output)])?;
-    anyhow::ensure!(
-        !args.why.trim().is_empty(),
-        "--why is empty: say why the change is needed (the approver reads it)"
-    );
     let mut changes = CompensationValues::new();
     for item in &args.set {
         let (id, value) = item
@@ -180,6 +176,7 @@ fn propose(args: ProposeArgs) -> anyhow::Result<()> {
         evidence: args.evidence,
         action: "adjust".into(),
     };
+    proposal.validate()?;
     crate::servosight_cli::write_json(&args.output, &proposal)
 }
 

@@ -26,14 +26,6 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    // From a watch screw to the largest lathes' swing: outside it the number is a typo, and
-    // the cutting force it implies (torque over radius) would be nonsense.
-    anyhow::ensure!(
-        args.workpiece_diameter_mm.is_finite()
-            && (1.0..=10_000.0).contains(&args.workpiece_diameter_mm),
-        "--workpiece-diameter-mm must be between 1 and 10000 mm, not {}",
-        args.workpiece_diameter_mm
-    );
     let mut inputs = vec![args.recording.as_path()];
     inputs.extend(args.profile.as_deref());
     refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;

@@ -140,14 +140,28 @@ pub fn text_report_wanted(json: Option<&std::path::Path>) -> bool {
 /// Refuses, before anything is written, an output that is the same file as one of the inputs
 /// (`-o day.csv` for the recording being read, `--json audit.jsonl` for the audit log): writing
 /// it would destroy data the command was asked to read. Standard output (`-`) and outputs that
-/// do not exist yet are never an input.
+/// do not exist yet are never an input. Two outputs naming one file, or standard output twice,
+/// are refused too.
 pub fn refuse_overwriting_inputs(
     inputs: &[&std::path::Path],
     outputs: &[Option<&std::path::Path>],
 ) -> anyhow::Result<()> {
-    for output in outputs.iter().flatten() {
+    let outputs: Vec<&std::path::Path> = outputs.iter().flatten().copied().collect();
+    if outputs.iter().filter(|o| is_stdout(o)).count() > 1 {
+        anyhow::bail!("only one output can go to standard output (-)");
+    }
+    for (i, output) in outputs.iter().enumerate() {
         if is_stdout(output) {
             continue;
+        }
+        if outputs[..i]
+            .iter()
+            .any(|earlier| *earlier == *output || same_file(earlier, output))
+        {
+            anyhow::bail!(
+                "{} is given for two outputs of this command: one would overwrite the other",
+                output.display()
+            );
         }
         for input in inputs {
             if same_file(input, output) {

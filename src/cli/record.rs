@@ -103,6 +103,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         summary.recorder.gaps_marked
     );
     if let Some(path) = &args.json {
+        let parts: Vec<&std::path::Path> = summary.files.iter().map(std::path::Path::new).collect();
+        crate::servosight_cli::refuse_overwriting_inputs(&parts, &[Some(path)])?;
         crate::servosight_cli::write_json(path, &summary)?;
     }
     Ok(())

@@ -132,19 +132,23 @@ pub fn write_simulation(config: TwinConfig, output: &std::path::Path) -> anyhow:
 /// `servosight day-summary`: the headless equivalent of the HMI — simulate a production day and summarise it.
 pub fn run_default_day() -> anyhow::Result<()> {
     // A directory of this run's own: `create_dir` fails on a name somebody else took, so the
-    // day is never written through a link planted under a shared, predictable name.
+    // day is never written through a link planted under a shared, predictable name. It is
+    // removed once summarised (a 10 h recording per run would pile up in the temp directory);
+    // `simulate --scenario production -o FILE` keeps one.
     let stamp = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos());
     let dir = std::env::temp_dir().join(format!("servosight-day-{}-{stamp}", std::process::id()));
     std::fs::create_dir(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let path = dir.join("production-day.csv");
-    let config = TwinConfig::new(ScenarioKind::Production, Some(10.0), 1);
-    let rows = write_simulation(config, &path)?;
-    let recording = read_recording(&path)?;
-    outln!(
-        "Simulated a production day on the twin: {rows} rows → {}",
-        path.display()
-    )?;
-    crate::servosight_cli::inspect::print_day_summary(&recording)
+    let summarised = (|| {
+        let config = TwinConfig::new(ScenarioKind::Production, Some(10.0), 1);
+        let rows = write_simulation(config, &path)?;
+        let recording = read_recording(&path)?;
+        outln!("Simulated a production day on the twin: {rows} rows")?;
+        crate::servosight_cli::inspect::print_day_summary(&recording)
+    })();
+    // Best effort: a directory left behind holds nothing anybody asked to keep.
+    let _ = std::fs::remove_dir_all(&dir);
+    summarised
 }

@@ -101,6 +101,41 @@ fn default_action() -> String {
     "adjust".into()
 }
 
+impl Proposal {
+    /// What every proposal must be before anybody is asked to approve it (checked when it is
+    /// written and again when it is requested): it changes something, every value is a finite
+    /// number of micrometres, no backlash compensation is negative, and it says why.
+    pub fn validate(&self) -> Result<(), CompensationError> {
+        if self.changes.is_empty() {
+            return Err(CompensationError::Invalid(
+                "the proposal changes nothing".into(),
+            ));
+        }
+        if let Some((id, value)) = self.changes.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(CompensationError::Invalid(format!(
+                "{id} = {value} is not a number"
+            )));
+        }
+        // Backlash compensation adds lost motion back at a reversal; a negative amount would
+        // make the axis overshoot by it at every reversal.
+        if let Some((id, value)) = self
+            .changes
+            .iter()
+            .find(|(id, v)| matches!(id, CompensationId::Backlash(_)) && *v < 0.0)
+        {
+            return Err(CompensationError::Invalid(format!(
+                "{id} = {value} µm: a backlash compensation is never negative"
+            )));
+        }
+        if self.why.trim().is_empty() {
+            return Err(CompensationError::Invalid(
+                "the proposal does not say why it is needed (the approver reads it)".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// A proposal an operator asked to push.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Request {
@@ -118,32 +153,7 @@ impl Request {
                 "the operator has no name".into(),
             ));
         }
-        if proposal.changes.is_empty() {
-            return Err(CompensationError::Invalid(
-                "the proposal changes nothing".into(),
-            ));
-        }
-        if let Some((id, value)) = proposal.changes.iter().find(|(_, v)| !v.is_finite()) {
-            return Err(CompensationError::Invalid(format!(
-                "{id} = {value} is not a number"
-            )));
-        }
-        // Backlash compensation adds lost motion back at a reversal; a negative amount would
-        // make the axis overshoot by it at every reversal.
-        if let Some((id, value)) = proposal
-            .changes
-            .iter()
-            .find(|(id, v)| matches!(id, CompensationId::Backlash(_)) && *v < 0.0)
-        {
-            return Err(CompensationError::Invalid(format!(
-                "{id} = {value} µm: a backlash compensation is never negative"
-            )));
-        }
-        if proposal.why.trim().is_empty() {
-            return Err(CompensationError::Invalid(
-                "the proposal does not say why it is needed".into(),
-            ));
-        }
+        proposal.validate()?;
         let mut hasher = Sha256::new();
         hasher.update(serde_json::to_string(&proposal).unwrap_or_default());
         hasher.update(operator.as_bytes());

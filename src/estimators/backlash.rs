@@ -66,6 +66,12 @@ pub enum BacklashError {
         "{0}: no reciprocating moves of the {1} axis found (is this a backlash-test recording?)"
     )]
     NoMoves(String, AxisId),
+    /// The moves were found, but at no feed did the current rise once the table was driven.
+    #[error(
+        "{0}: the {1} axis's moves were found, but at no feed ({2}) did the current rise once \
+         the table was driven: no knee, so no backlash can be read (is the current recorded?)"
+    )]
+    NoRise(String, AxisId, String),
     /// Every row has the same time stamp: no moves can be timed.
     #[error("{0}: every row has the same time stamp, so no move can be timed")]
     TimeStalls(String),
@@ -165,6 +171,17 @@ pub fn analyse_backlash(
             rise_t: fit.rise_t,
             samples: fit.samples,
         });
+    }
+    if by_speed.is_empty() && !feeds_without_a_rise.is_empty() {
+        let feeds: Vec<String> = feeds_without_a_rise
+            .iter()
+            .map(|f| format!("{f:.0} mm/min"))
+            .collect();
+        return Err(BacklashError::NoRise(
+            recording.source().to_string(),
+            axis,
+            feeds.join(", "),
+        ));
     }
     if by_speed.is_empty() {
         return Err(BacklashError::NoMoves(recording.source().to_string(), axis));

@@ -268,10 +268,11 @@ pub fn calibrate(
     experiments: &[Recording],
 ) -> Result<(Calibration, CalibrationReport), CalibrationError> {
     let first = database.first().ok_or(CalibrationError::NoDatabase)?;
-    if let Some(bare) = database
-        .iter()
-        .find(|r| !r.names().iter().any(|n| n.starts_with("ref.")))
-    {
+    if let Some(bare) = database.iter().find(|r| {
+        !r.names()
+            .iter()
+            .any(|n| n.starts_with(crate::signal::channel::REFERENCE_PREFIX))
+    }) {
         return Err(CalibrationError::NoReferences {
             recording: bare.source().to_string(),
         });

@@ -67,6 +67,10 @@ pub enum DepthOfCutError {
     /// The profile lacks a spindle.
     #[error("the profile has no spindle axis")]
     NoSpindle,
+    /// A workpiece diameter nobody turns: the cutting force (torque over radius) would be
+    /// nonsense.
+    #[error("the workpiece diameter must be between 1 and 10000 mm, not {0}")]
+    ImplausibleDiameter(f64),
     /// A regression failed.
     #[error("{0}")]
     Fit(#[from] crate::fit::FitError),
@@ -116,6 +120,10 @@ pub fn recommend_depth_of_cut(
     recording: &Recording,
     workpiece_diameter_mm: f64,
 ) -> Result<DepthOfCutRecommendation, DepthOfCutError> {
+    // From a watch screw to the largest lathes' swing.
+    if !(workpiece_diameter_mm.is_finite() && (1.0..=10_000.0).contains(&workpiece_diameter_mm)) {
+        return Err(DepthOfCutError::ImplausibleDiameter(workpiece_diameter_mm));
+    }
     let (spindle_axis, spindle) = profile
         .axes
         .iter()

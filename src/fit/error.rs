@@ -26,13 +26,14 @@ pub enum FitError {
     Recording(#[from] RecordingError),
     /// A value so large that the sums of squares behind every statistic would overflow.
     #[error(
-        "`{column}` is {value:e} at row {row}: values beyond ±1e100 overflow the fit's sums of \
-         squares (a wrong unit or a garbled cell?)"
+        "`{column}` is {value:e} in its data row {}: values beyond ±1e100 overflow the fit's \
+         sums of squares (a wrong unit or a garbled cell?)",
+        row + 1
     )]
     TooLarge {
         /// The target or term.
         column: String,
-        /// Row index (0-based) in the recording.
+        /// Row index (0-based) among the values given.
         row: usize,
         /// The value.
         value: f64,

@@ -277,7 +277,8 @@ impl Channel {
             Channel::Ambient => Some((-50.0, 80.0)),
             Channel::Coolant => Some((0.0, 1.0)),
             // A reference instrument measures a temperature of the machine (the range of a
-            // winding sensor) or a displacement (straightness, growth, backlash: ±100 mm).
+            // winding sensor) or a displacement (straightness, growth, backlash: ±100 m, as
+            // for positions).
             Channel::Reference { quantity, .. } => match Channel::unit_of(quantity) {
                 Some("°C") => Some(Quantity::StatorTemp.plausible_range()),
                 Some("µm") => Some((-1.0e8, 1.0e8)),
