@@ -7,22 +7,31 @@ use std::path::{Path, PathBuf};
 
 use crate::common::{arg, one_line_failure, servosight, stderr, stdout};
 
-/// A short twin recording written by the CLI, as a user makes one.
+/// A short twin recording written by the CLI, as a user makes one (seed 3).
 fn simulate(dir: &Path, name: &str, scenario: &str, hours: &str) -> PathBuf {
+    simulate_with(
+        dir,
+        name,
+        &["--scenario", scenario, "--hours", hours, "--seed", "3"],
+    )
+}
+
+/// A twin recording written by `servosight simulate` with `options`.
+fn simulate_with(dir: &Path, name: &str, options: &[&str]) -> PathBuf {
     let path = dir.join(name);
-    let run = servosight(&[
-        "simulate",
-        "--scenario",
-        scenario,
-        "--hours",
-        hours,
-        "--seed",
-        "3",
-        "-o",
-        arg(&path),
-    ]);
+    let mut args = vec!["simulate"];
+    args.extend_from_slice(options);
+    args.extend(["-o", arg(&path)]);
+    let run = servosight(&args);
     assert!(run.status.success(), "{}", stderr(&run));
     path
+}
+
+/// Runs `args`, which must fail with one line on stderr that contains `expected`.
+fn assert_refused(args: &[&str], expected: &str) {
+    let run = servosight(args);
+    let error = one_line_failure(&run);
+    assert!(error.contains(expected), "{args:?}: {error}");
 }
 
 fn twin_profile() -> PathBuf {
@@ -287,9 +296,7 @@ fn option_values_nobody_can_mean_are_refused_and_nothing_is_written() {
         ),
     ];
     for (args, expected) in &cases {
-        let run = servosight(args);
-        let error = one_line_failure(&run);
-        assert!(error.contains(expected), "{args:?}: {error}");
+        assert_refused(args, expected);
         assert!(!program.exists(), "{args:?} wrote {}", program.display());
     }
 }
@@ -374,9 +381,7 @@ fn recordings_that_cannot_be_analysed_are_refused_by_name() {
         ),
     ];
     for (args, expected) in &cases {
-        let run = servosight(args);
-        let error = one_line_failure(&run);
-        assert!(error.contains(expected), "{args:?}: {error}");
+        assert_refused(args, expected);
     }
     assert!(!out.exists());
 }
@@ -387,19 +392,18 @@ fn recordings_that_cannot_be_analysed_are_refused_by_name() {
 #[test]
 fn a_feed_whose_current_never_rises_reports_no_backlash() {
     let dir = tempfile::tempdir().unwrap();
-    let test = dir.path().join("lash.csv");
-    let run = servosight(&[
-        "simulate",
-        "--scenario",
-        "backlash-test",
-        "--seed",
-        "1",
-        "--rate",
-        "200",
-        "-o",
-        arg(&test),
-    ]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    let test = simulate_with(
+        dir.path(),
+        "lash.csv",
+        &[
+            "--scenario",
+            "backlash-test",
+            "--seed",
+            "1",
+            "--rate",
+            "200",
+        ],
+    );
     let run = servosight(&[
         "backlash",
         "--recording",
@@ -432,20 +436,12 @@ fn a_feed_whose_current_never_rises_reports_no_backlash() {
 #[test]
 fn a_database_shorter_than_the_lags_its_models_read_is_warned_of() {
     let dir = tempfile::tempdir().unwrap();
-    let database = dir.path().join("db.csv");
+    let database = simulate_with(
+        dir.path(),
+        "db.csv",
+        &["--scenario", "doe", "--hours", "0.5", "--seed", "1"],
+    );
     let profile = dir.path().join("profile.toml");
-    let run = servosight(&[
-        "simulate",
-        "--scenario",
-        "doe",
-        "--hours",
-        "0.5",
-        "--seed",
-        "1",
-        "-o",
-        arg(&database),
-    ]);
-    assert!(run.status.success(), "{}", stderr(&run));
     let run = servosight(&[
         "calibrate",
         "--database",
