@@ -193,8 +193,9 @@ pub struct StepTrace {
     pub tail_p: f64,
     /// Whether it entered the model.
     pub accepted: bool,
-    /// Whether it was withdrawn again when a later correction, refitted jointly with it,
-    /// explained what it had taken (backward elimination).
+    /// Whether it was withdrawn again: when a later correction, refitted jointly with it,
+    /// explained what it had taken (backward elimination), or when on all rows it proved
+    /// empty (smaller than a quarter of the sample noise and adding nothing held out).
     pub withdrawn: bool,
     /// Whether it was accepted on what it explains with every correction refitted beside it,
     /// having not been significant beside them as they stood; its gain and p-values are then
