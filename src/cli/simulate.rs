@@ -141,14 +141,15 @@ pub fn run_default_day() -> anyhow::Result<()> {
     let dir = std::env::temp_dir().join(format!("servosight-day-{}-{stamp}", std::process::id()));
     std::fs::create_dir(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let path = dir.join("production-day.csv");
-    let summarised = (|| {
+    let simulated = (|| {
         let config = TwinConfig::new(ScenarioKind::Production, Some(10.0), 1);
         let rows = write_simulation(config, &path)?;
-        let recording = read_recording(&path)?;
-        outln!("Simulated a production day on the twin: {rows} rows")?;
-        crate::servosight_cli::inspect::print_day_summary(&recording)
+        anyhow::Ok((rows, read_recording(&path)?))
     })();
-    // Best effort: a directory left behind holds nothing anybody asked to keep.
+    // Removed before anything is printed: a reader that goes away (`| head`) ends the process
+    // at the next write. Best effort: a directory left behind holds nothing anybody asked for.
     let _ = std::fs::remove_dir_all(&dir);
-    summarised
+    let (rows, recording) = simulated?;
+    outln!("Simulated a production day on the twin: {rows} rows")?;
+    crate::servosight_cli::inspect::print_day_summary(&recording)
 }
