@@ -1,8 +1,8 @@
 //! `servosight backlash` and `servosight backlash-program`: the paper's servo-signal backlash test.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use crate::servosight_cli::{out, outln, refuse_overwriting_inputs, text_report_wanted};
+use crate::servosight_cli::{emit_report, out, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::backlash::{analyse_backlash, nc_program};
 use servosight::profile::MachineProfile;
@@ -71,45 +71,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("the profile has no ball screw for axis {}", args.axis))?;
     let recording = read_recording(&args.recording).context("cannot read recording")?;
     let report = analyse_backlash(&recording, args.axis, lead)?;
-    if !text_report_wanted(args.json.as_deref()) {
-        return crate::servosight_cli::write_json(Path::new("-"), &report);
-    }
-    outln!(
-        "{} axis backlash: {:.1} µm (confidence {:.2}), from a {:.1} min test",
-        report.axis,
-        report.backlash_um,
-        report.confidence,
-        report.test_duration_s / 60.0
-    )?;
-    outln!(
-        "{:>10} {:>10} {:>12} {:>20} {:>12}",
-        "feed",
-        "motor rpm",
-        "backlash µm",
-        "95 % interval µm",
-        "rise A (t)"
-    )?;
-    for b in &report.by_speed {
+    emit_report(args.json.as_deref(), &report, || {
         outln!(
-            "{:>10.0} {:>10.1} {:>12.1} {:>9.1} – {:<8.1} {:>6.3} ({:.0})",
-            b.feed_mm_per_min,
-            b.speed_rpm,
-            b.backlash_um,
-            b.ci_low_um,
-            b.ci_high_um,
-            b.current_rise_a,
-            b.rise_t
+            "{} axis backlash: {:.1} µm (confidence {:.2}), from a {:.1} min test",
+            report.axis,
+            report.backlash_um,
+            report.confidence,
+            report.test_duration_s / 60.0
         )?;
-    }
-    for feed in &report.feeds_without_a_rise {
         outln!(
-            "{feed:>10.0}  no rise of the current: no knee at this feed (counted against the confidence)"
+            "{:>10} {:>10} {:>12} {:>20} {:>12}",
+            "feed",
+            "motor rpm",
+            "backlash µm",
+            "95 % interval µm",
+            "rise A (t)"
         )?;
-    }
-    if let Some(path) = &args.json {
-        crate::servosight_cli::write_json(path, &report)?;
-    }
-    Ok(())
+        for b in &report.by_speed {
+            outln!(
+                "{:>10.0} {:>10.1} {:>12.1} {:>9.1} – {:<8.1} {:>6.3} ({:.0})",
+                b.feed_mm_per_min,
+                b.speed_rpm,
+                b.backlash_um,
+                b.ci_low_um,
+                b.ci_high_um,
+                b.current_rise_a,
+                b.rise_t
+            )?;
+        }
+        for feed in &report.feeds_without_a_rise {
+            outln!(
+                "{feed:>10.0}  no rise of the current: no knee at this feed (counted against the confidence)"
+            )?;
+        }
+        Ok(())
+    })
 }
 
 pub fn run_program(args: ProgramArgs) -> anyhow::Result<()> {

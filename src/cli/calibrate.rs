@@ -2,12 +2,12 @@
 
 use std::path::PathBuf;
 
-use crate::servosight_cli::{outln, refuse_overwriting_inputs, same_file, text_report_wanted};
+use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs, repeated};
 use anyhow::Context;
-use servosight::estimators::calibration::{CorrectionForm, calibrate};
+use servosight::estimators::calibration::{CalibrationReport, CorrectionForm, calibrate};
 use servosight::estimators::models::{AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S};
 use servosight::profile::MachineProfile;
-use servosight::signal::read_recording;
+use servosight::signal::{Recording, read_recording};
 
 /// Arguments of `servosight calibrate`.
 #[derive(Debug, clap::Args)]
@@ -65,9 +65,59 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     profile.calibration = Some(calibration);
     profile.validate("the calibrated profile")?;
     profile.save(&args.output)?;
-    // Written, since it is the best the data allow, but a model that predicts its own held-out
-    // blocks poorly is said to on stderr: a database too short or too uniform (half an hour of
-    // one program) fits intercepts far from any temperature the machine reaches.
+    warn_of_weak_models(&report, &database);
+    emit_report(args.json.as_deref(), &report, || {
+        outln!(
+            "{:<34} {:>8} {:>8} {:>8} {:>12}  equation",
+            "model",
+            "n",
+            "R²",
+            "CV R²",
+            "F"
+        )?;
+        for m in &report.models {
+            outln!(
+                "{:<34} {:>8} {:>8.4} {:>8.4} {:>12.4e}  {}",
+                m.estimate,
+                m.n,
+                m.r2,
+                m.cv_r2,
+                m.f_statistic,
+                m.equation
+            )?;
+            if let Some(c) = &m.experiment_correction {
+                let verdict = match c.form {
+                    CorrectionForm::None => "none applied".to_string(),
+                    CorrectionForm::Offset => format!("applied: {:+.4}", c.offset),
+                    CorrectionForm::Gain => format!("applied: {:.4}·predicted", c.gain),
+                    CorrectionForm::GainOffset => {
+                        format!("applied: {:+.4} + {:.4}·predicted", c.offset, c.gain)
+                    }
+                };
+                outln!(
+                    "{:<34} experiments: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
+                    "",
+                    c.n,
+                    c.cv_rmse_none,
+                    c.cv_rmse_offset,
+                    c.cv_rmse_gain,
+                    c.cv_rmse_gain_offset,
+                    c.improvement_p_value,
+                    verdict,
+                    c.rmse_before,
+                    c.rmse_after,
+                )?;
+            }
+        }
+        outln!("calibrated profile written to {}", args.output.display())
+    })
+}
+
+/// The profile is written whatever these say, since it is the best the data allow; what may
+/// make its estimates unreliable is said on stderr.
+fn warn_of_weak_models(report: &CalibrationReport, database: &[Recording]) {
+    // Over a database shorter than a lag, that lag is nearly a constant: half an hour of DOE
+    // fitted straightness intercepts of −2e4 µm from the room's slowest lag.
     let database_s: f64 = database.iter().map(|r| r.duration_s()).sum();
     let slowest_read = AMBIENT_LAG_TAUS_S
         .iter()
@@ -75,9 +125,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .filter(|(tau, _)| **tau > database_s)
         .filter(|(_, feature)| report.models.iter().any(|m| m.equation.contains(feature)))
         .map(|(tau, _)| *tau)
-        .fold(None, |slowest: Option<f64>, tau| {
-            Some(slowest.map_or(tau, |s| s.max(tau)))
-        });
+        .reduce(f64::max);
     if let Some(tau) = slowest_read {
         eprintln!(
             "warning: the database spans {:.1} h, less than the slowest lag the models read \
@@ -95,56 +143,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             m.estimate, m.cv_r2
         );
     }
-    if !text_report_wanted(args.json.as_deref()) {
-        return crate::servosight_cli::write_json(std::path::Path::new("-"), &report);
-    }
-    outln!(
-        "{:<34} {:>8} {:>8} {:>8} {:>12}  equation",
-        "model",
-        "n",
-        "R²",
-        "CV R²",
-        "F"
-    )?;
-    for m in &report.models {
-        outln!(
-            "{:<34} {:>8} {:>8.4} {:>8.4} {:>12.4e}  {}",
-            m.estimate,
-            m.n,
-            m.r2,
-            m.cv_r2,
-            m.f_statistic,
-            m.equation
-        )?;
-        if let Some(c) = &m.experiment_correction {
-            let verdict = match c.form {
-                CorrectionForm::None => "none applied".to_string(),
-                CorrectionForm::Offset => format!("applied: {:+.4}", c.offset),
-                CorrectionForm::Gain => format!("applied: {:.4}·predicted", c.gain),
-                CorrectionForm::GainOffset => {
-                    format!("applied: {:+.4} + {:.4}·predicted", c.offset, c.gain)
-                }
-            };
-            outln!(
-                "{:<34} experiments: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
-                "",
-                c.n,
-                c.cv_rmse_none,
-                c.cv_rmse_offset,
-                c.cv_rmse_gain,
-                c.cv_rmse_gain_offset,
-                c.improvement_p_value,
-                verdict,
-                c.rmse_before,
-                c.rmse_after,
-            )?;
-        }
-    }
-    outln!("calibrated profile written to {}", args.output.display())?;
-    if let Some(path) = &args.json {
-        crate::servosight_cli::write_json(path, &report)?;
-    }
-    Ok(())
 }
 
 /// Below this held-out R² a calibrated model is flagged: it predicts its held-out blocks worse
@@ -158,19 +156,23 @@ fn refuse_a_recording_given_twice(
     database: &[PathBuf],
     experiments: &[PathBuf],
 ) -> anyhow::Result<()> {
-    let all: Vec<&PathBuf> = database.iter().chain(experiments).collect();
-    for (i, a) in all.iter().enumerate() {
-        if let Some(b) = all[..i].iter().find(|b| same_file(a, b)) {
-            let alias = if a == b {
+    let all: Vec<&std::path::Path> = database
+        .iter()
+        .chain(experiments)
+        .map(PathBuf::as_path)
+        .collect();
+    match repeated(&all) {
+        Some((again, first)) => {
+            let alias = if again == first {
                 String::new()
             } else {
-                format!(" (also as {})", b.display())
+                format!(" (also as {})", first.display())
             };
             anyhow::bail!(
                 "{} is given twice{alias}: each recording may be used once",
-                a.display()
-            );
+                again.display()
+            )
         }
+        None => Ok(()),
     }
-    Ok(())
 }

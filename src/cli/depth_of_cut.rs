@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::servosight_cli::{outln, refuse_overwriting_inputs, text_report_wanted};
+use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::depth_of_cut::recommend_depth_of_cut;
 use servosight::profile::MachineProfile;
@@ -35,41 +35,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let recording = read_recording(&args.recording).context("cannot read recording")?;
     let r = recommend_depth_of_cut(&profile, &recording, args.workpiece_diameter_mm)?;
-    if !text_report_wanted(args.json.as_deref()) {
-        return crate::servosight_cli::write_json(std::path::Path::new("-"), &r);
-    }
-    outln!(
-        "Maximum rough-cut depth: {:.1} mm at f = {:.2} mm/rev, {:.0} rpm — limited by {}",
-        r.recommended_depth_mm,
-        r.feed_per_rev_mm,
-        r.spindle_rpm,
-        r.limiting_component
-    )?;
-    outln!("  {}", r.reason)?;
-    outln!(
-        "  {:<22} {:>10} {:>12} {:>12} {:>10} {:>6}",
-        "component",
-        "idle",
-        "per mm",
-        "limit",
-        "max depth",
-        "R²"
-    )?;
-    for c in &r.components {
+    emit_report(args.json.as_deref(), &r, || {
         outln!(
-            "  {:<22} {:>10.2} {:>12.2} {:>12.1} {:>7.2} mm {:>6.3}  {} ({})",
-            c.component,
-            c.idle_load,
-            c.load_per_mm,
-            c.limit,
-            c.max_depth_mm,
-            c.r2,
-            c.unit,
-            c.why
+            "Maximum rough-cut depth: {:.1} mm at f = {:.2} mm/rev, {:.0} rpm — limited by {}",
+            r.recommended_depth_mm,
+            r.feed_per_rev_mm,
+            r.spindle_rpm,
+            r.limiting_component
         )?;
-    }
-    if let Some(path) = &args.json {
-        crate::servosight_cli::write_json(path, &r)?;
-    }
-    Ok(())
+        outln!("  {}", r.reason)?;
+        outln!(
+            "  {:<22} {:>10} {:>12} {:>12} {:>10} {:>6}",
+            "component",
+            "idle",
+            "per mm",
+            "limit",
+            "max depth",
+            "R²"
+        )?;
+        for c in &r.components {
+            outln!(
+                "  {:<22} {:>10.2} {:>12.2} {:>12.1} {:>7.2} mm {:>6.3}  {} ({})",
+                c.component,
+                c.idle_load,
+                c.load_per_mm,
+                c.limit,
+                c.max_depth_mm,
+                c.r2,
+                c.unit,
+                c.why
+            )?;
+        }
+        Ok(())
+    })
 }

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::servosight_cli::{out, refuse_overwriting_inputs, text_report_wanted};
+use crate::servosight_cli::{emit_report, out, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::discrepancy::{Options, RowBudget, analyse};
 use servosight::parallel::join_or_resume;
@@ -156,12 +156,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Options::default()
     };
     let report = analyse(&sim, &real, &args.target, &options)?;
-    if text_report_wanted(args.json.as_deref()) {
-        out!("{}", report.summary())?;
-    }
-    if let Some(path) = &args.json {
-        crate::servosight_cli::write_json(path, &report)?;
-    }
+    emit_report(args.json.as_deref(), &report, || {
+        out!("{}", report.summary())
+    })?;
     if let Some(path) = &args.plot_data {
         crate::servosight_cli::write_json(path, &report.plot)?;
     }

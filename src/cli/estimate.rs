@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use crate::servosight_cli::{outln, refuse_overwriting_inputs, text_report_wanted};
+use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::abnormality::{AbnormalityState, judge};
 use servosight::estimators::accuracy::{AccuracyRow, StreamError, StreamedRun, run_streaming};
@@ -174,66 +174,62 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.output {
         write_estimates(path, &args, &profile, &series)?;
     }
-    let text = text_report_wanted(args.json.as_deref());
-    if text && rows.is_empty() {
-        outln!(
-            "{} rows estimated; the recording has no reference columns to score against",
-            series.rows
-        )?;
-    } else if text {
-        outln!(
-            "{:<24} {:>8} {:>8} {:>10} {:>10} {:>9} {:>10}  reference",
-            "estimate",
-            "n",
-            "R²",
-            "RMSE",
-            "max |err|",
-            "ref σ",
-            "R² true"
-        )?;
-        for r in rows {
-            let corrected = r
-                .r2_noise_corrected
-                .map_or_else(|| "—".to_string(), |v| format!("{v:.4}"));
+    let report = Report {
+        rows: series.rows,
+        accuracy: rows,
+        abnormality,
+        notes: series.notes.clone(),
+    };
+    emit_report(args.json.as_deref(), &report, || {
+        if rows.is_empty() {
             outln!(
-                "{:<24} {:>8} {:>8.4} {:>10.4} {:>10.4} {:>9.4} {:>10}  {}",
-                r.estimate,
-                r.n,
-                r.r2,
-                r.rmse,
-                r.max_abs_error,
-                r.reference_noise,
-                corrected,
-                r.reference
+                "{} rows estimated; the recording has no reference columns to score against",
+                series.rows
+            )?;
+        } else {
+            outln!(
+                "{:<24} {:>8} {:>8} {:>10} {:>10} {:>9} {:>10}  reference",
+                "estimate",
+                "n",
+                "R²",
+                "RMSE",
+                "max |err|",
+                "ref σ",
+                "R² true"
+            )?;
+            for r in rows {
+                let corrected = r
+                    .r2_noise_corrected
+                    .map_or_else(|| "—".to_string(), |v| format!("{v:.4}"));
+                outln!(
+                    "{:<24} {:>8} {:>8.4} {:>10.4} {:>10.4} {:>9.4} {:>10}  {}",
+                    r.estimate,
+                    r.n,
+                    r.r2,
+                    r.rmse,
+                    r.max_abs_error,
+                    r.reference_noise,
+                    corrected,
+                    r.reference
+                )?;
+            }
+            outln!(
+                "R² true: against the noise-free reference, with the reference's white noise (ref σ) estimated from its sample-to-sample differences"
             )?;
         }
-        outln!(
-            "R² true: against the noise-free reference, with the reference's white noise (ref σ) estimated from its sample-to-sample differences"
-        )?;
-    }
-    for row in abnormality.iter().filter(|_| text) {
-        outln!(
-            "motor abnormality {}: {} — {}",
-            row.axis,
-            row.state.label(),
-            row.reason
-        )?;
-    }
-    for note in series.notes.iter().filter(|_| text) {
-        outln!("note: {note}")?;
-    }
-    if let Some(path) = &args.json {
-        crate::servosight_cli::write_json(
-            path,
-            &Report {
-                rows: series.rows,
-                accuracy: rows,
-                abnormality,
-                notes: series.notes.clone(),
-            },
-        )?;
-    }
-    Ok(())
+        for row in &report.abnormality {
+            outln!(
+                "motor abnormality {}: {} — {}",
+                row.axis,
+                row.state.label(),
+                row.reason
+            )?;
+        }
+        for note in &series.notes {
+            outln!("note: {note}")?;
+        }
+        Ok(())
+    })
 }
 
 #[cfg(test)]

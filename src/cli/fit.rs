@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use crate::servosight_cli::{out, refuse_overwriting_inputs, text_report_wanted};
+use crate::servosight_cli::{emit_report, out, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::fit::{
     Criterion, Design, Direction, FitReport, SelectionOptions, ols, parse_terms, select,
@@ -91,11 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(selection) = selection {
         report = report.with_selection(selection);
     }
-    if text_report_wanted(args.json.as_deref()) {
-        out!("{}", report.summary_table())?;
-    }
-    if let Some(path) = &args.json {
-        crate::servosight_cli::write_json(path, &report)?;
-    }
-    Ok(())
+    emit_report(args.json.as_deref(), &report, || {
+        out!("{}", report.summary_table())
+    })
 }

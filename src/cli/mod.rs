@@ -146,23 +146,21 @@ pub fn refuse_overwriting_inputs(
     inputs: &[&std::path::Path],
     outputs: &[Option<&std::path::Path>],
 ) -> anyhow::Result<()> {
-    let outputs: Vec<&std::path::Path> = outputs.iter().flatten().copied().collect();
-    if outputs.iter().filter(|o| is_stdout(o)).count() > 1 {
+    let (to_stdout, files): (Vec<&std::path::Path>, Vec<&std::path::Path>) = outputs
+        .iter()
+        .flatten()
+        .copied()
+        .partition(|o| is_stdout(o));
+    if to_stdout.len() > 1 {
         anyhow::bail!("only one output can go to standard output (-)");
     }
-    for (i, output) in outputs.iter().enumerate() {
-        if is_stdout(output) {
-            continue;
-        }
-        if outputs[..i]
-            .iter()
-            .any(|earlier| *earlier == *output || same_file(earlier, output))
-        {
-            anyhow::bail!(
-                "{} is given for two outputs of this command: one would overwrite the other",
-                output.display()
-            );
-        }
+    if let Some((output, _)) = repeated(&files) {
+        anyhow::bail!(
+            "{} is given for two outputs of this command: one would overwrite the other",
+            output.display()
+        );
+    }
+    for output in &files {
         for input in inputs {
             if same_file(input, output) {
                 anyhow::bail!(
@@ -174,6 +172,19 @@ pub fn refuse_overwriting_inputs(
         }
     }
     Ok(())
+}
+
+/// The first of `paths` that names the same file as an earlier one (spelled alike, or one file
+/// reached two ways), with that earlier one.
+pub fn repeated<'a>(
+    paths: &[&'a std::path::Path],
+) -> Option<(&'a std::path::Path, &'a std::path::Path)> {
+    paths.iter().enumerate().find_map(|(i, path)| {
+        paths[..i]
+            .iter()
+            .find(|earlier| *earlier == path || same_file(earlier, path))
+            .map(|earlier| (*path, *earlier))
+    })
 }
 
 /// Two paths that name one existing file (through links, `..` or hard links on Unix).
@@ -193,6 +204,22 @@ pub fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
             (std::fs::canonicalize(a), std::fs::canonicalize(b)),
             (Ok(x), Ok(y)) if x == y
         )
+    }
+}
+
+/// A command's report: its text on standard output, then its JSON where `--json` asks. With
+/// `--json -` the JSON alone goes to standard output, so that it can be parsed.
+pub fn emit_report<T: serde::Serialize>(
+    json: Option<&std::path::Path>,
+    value: &T,
+    text: impl FnOnce() -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    if text_report_wanted(json) {
+        text()?;
+    }
+    match json {
+        Some(path) => write_json(path, value),
+        None => Ok(()),
     }
 }
 

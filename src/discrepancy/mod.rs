@@ -387,21 +387,23 @@ impl AllRows<'_> {
                 .collect();
             (standardised(&raw).0, owners)
         };
-        let with_intercept = |standard: &[Vec<f64>]| -> Vec<Vec<f64>> {
-            std::iter::once(ones.clone())
-                .chain(standard.iter().cloned())
+        fn with_intercept<'c>(ones: &'c [f64], standard: &'c [Vec<f64>]) -> Vec<&'c [f64]> {
+            std::iter::once(ones)
+                .chain(standard.iter().map(Vec::as_slice))
                 .collect()
-        };
+        }
         let held_out_r2 = |standard: &[Vec<f64>]| {
-            let design = with_intercept(standard);
-            let refs: Vec<&[f64]> = design.iter().map(|c| c.as_slice()).collect();
-            held_out_quality(&refs, self.residual, self.blocks, self.ss_total).r2
+            held_out_quality(
+                &with_intercept(&ones, standard),
+                self.residual,
+                self.blocks,
+                self.ss_total,
+            )
+            .r2
         };
         let (standard, owners) = design_without(None);
         let all = held_out_r2(&standard);
-        let design = with_intercept(&standard);
-        let refs: Vec<&[f64]> = design.iter().map(|c| c.as_slice()).collect();
-        let beta = least_squares(&refs, self.residual)?.0;
+        let beta = least_squares(&with_intercept(&ones, &standard), self.residual)?.0;
         // A correction's fitted contribution on all rows, as an RMS.
         let size = |i: usize| {
             let contribution: Vec<f64> = (0..n)
