@@ -40,6 +40,27 @@ pub fn lowpass_on_grid(
     }
 }
 
+/// How a first-order lag's own state at the first row dies away: 1 at the first row, then
+/// e^(−∫ rate / τ dt), the rate 1 + `speedup` · s with the switch `s` read row by row as
+/// [`lowpass_switched`] reads it (each row's switch holding over the step that ends there),
+/// or 1 throughout without a switch. Beside the lag of a driver from rest it spans every
+/// start the lag may have had: whatever heat the driver had already added before the
+/// recording began.
+pub fn decay_of_start(time: &[f64], tau_s: f64, switch: Option<(&[f64], f64)>) -> Vec<f64> {
+    let mut out = Vec::with_capacity(time.len());
+    let mut exponent = 0.0;
+    let mut previous_t = time.first().copied().unwrap_or(0.0);
+    for (i, &t) in time.iter().enumerate() {
+        let rate = switch.map_or(1.0, |(s, speedup)| {
+            1.0 + speedup * s.get(i).copied().unwrap_or(0.0)
+        });
+        exponent += (t - previous_t) * rate / tau_s;
+        previous_t = t;
+        out.push((-exponent).exp());
+    }
+    out
+}
+
 /// A first-order lag whose rate a switch speeds up: the state follows
 /// τ dy/dt = u − (1 + `speedup` · s) y, with the switch `s` (e.g. coolant flowing, 0 or 1)
 /// read row by row, from rest (y = 0). With the switch off it is the lag of time constant τ;
@@ -670,6 +691,26 @@ mod tests {
     use super::*;
     use crate::parallel::parallel_map;
     use rand::SeedableRng;
+
+    #[test]
+    fn the_decay_of_a_lags_start_is_its_lag_from_one_with_nothing_driving_it() {
+        let time: Vec<f64> = (0..400).map(|i| 3600.0 + 2.0 * i as f64).collect();
+        let tau = 300.0;
+        let plain = decay_of_start(&time, tau, None);
+        let free = lowpass_from(&time, &vec![0.0; time.len()], tau, 1.0);
+        for ((d, f), t) in plain.iter().zip(&free).zip(&time) {
+            let exact = (-(t - time[0]) / tau).exp();
+            assert!((d - exact).abs() < 1e-12 && (f - exact).abs() < 1e-12);
+        }
+        // With the switch on from the second row, the rate is 1 + speed-up throughout.
+        let mut switch = vec![1.0; time.len()];
+        switch[0] = 0.0;
+        let switched = decay_of_start(&time, tau, Some((&switch, 0.5)));
+        for (d, t) in switched.iter().zip(&time) {
+            let exact = (-1.5 * (t - time[0]) / tau).exp();
+            assert!((d - exact).abs() < 1e-12, "{d} against {exact}");
+        }
+    }
 
     #[test]
     fn dft_of_any_length_matches_the_definition_and_inverts() {
