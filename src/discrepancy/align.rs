@@ -4,7 +4,7 @@
 use super::DiscrepancyError;
 use super::censor::Censoring;
 use crate::signal::Recording;
-use crate::signal::channel::AMBIENT;
+use crate::signal::channel::{AMBIENT, Channel};
 
 /// Fewest overlapping rows an analysis accepts.
 pub const MIN_ROWS: usize = 60;
@@ -205,6 +205,39 @@ impl<'a> Aligned<'a> {
         Some(interpolate(self.sim.try_column(name)?, &self.sim_index))
     }
 
+    /// How far apart the simulated machine's temperatures are at the first aligned row, K:
+    /// every °C column of the simulation but `target` and the room (the simulation's
+    /// `ambient_C`, else the real one's), each at the first row alone: a soaked machine
+    /// starts warming at once, and a nut sampled every 10 s had risen 0.5 K over the first
+    /// five. A machine soaked in its room starts with them together; apart, the recording
+    /// starts mid-run. The target itself is left out: it may carry the
+    /// miscalibration the analysis is there to find (0.6 K + 1.04 × a soaked winding starts
+    /// 1.4 K from its room). `None` when there are not two temperatures to compare.
+    pub fn simulated_start_spread_k(&self, target: &str) -> Option<f64> {
+        let at_start = |column: &[f64], index: &Index| {
+            let first = interpolate(column, index.get(..1)?);
+            first.first().copied().filter(|t| t.is_finite())
+        };
+        let mut temperatures: Vec<f64> = self
+            .sim
+            .names()
+            .iter()
+            .filter(|name| *name != target && Channel::unit_of(name) == Some("°C"))
+            .filter_map(|name| at_start(self.sim.try_column(name)?, &self.sim_index))
+            .collect();
+        if self.sim.try_column(AMBIENT).is_none()
+            && let Some(room) = self.real.try_column(AMBIENT)
+        {
+            temperatures.extend(at_start(room, &self.real_index));
+        }
+        let (lo, hi) = temperatures
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
+                (lo.min(*t), hi.max(*t))
+            });
+        (temperatures.len() >= 2).then_some(hi - lo)
+    }
+
     /// One sentence on how the two recordings were joined.
     pub fn note(&self) -> String {
         let span = format!(
@@ -301,7 +334,7 @@ pub fn index_onto(source: &[f64], times: &[f64], step: f64) -> (Index, bool) {
 }
 
 /// `column` read at `index` by linear interpolation.
-pub fn interpolate(column: &[f64], index: &Index) -> Vec<f64> {
+pub fn interpolate(column: &[f64], index: &[(usize, f64)]) -> Vec<f64> {
     index
         .iter()
         .map(|&(j, f)| {
@@ -318,5 +351,65 @@ fn describe_span(recording: &Recording) -> String {
     match (recording.time().first(), recording.time().last()) {
         (Some(a), Some(b)) => format!("{} covers {a} s to {b} s", recording.source()),
         _ => format!("{} has no rows", recording.source()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A recording of `columns`, 100 rows a second apart, each column's value `value(name, t)`.
+    fn recording(columns: &[&str], value: impl Fn(&str, f64) -> f64) -> Recording {
+        let mut names = vec!["time_s".to_string()];
+        names.extend(columns.iter().map(|c| c.to_string()));
+        let mut recording = Recording::new("test", names).expect("a valid header");
+        for i in 0..100 {
+            let t = i as f64;
+            let mut row = vec![t];
+            row.extend(columns.iter().map(|c| value(c, t)));
+            recording.push_row(&row).expect("a valid row");
+        }
+        recording
+    }
+
+    #[test]
+    fn a_machine_soaked_in_its_room_starts_together_and_a_warm_one_apart() {
+        let columns = ["ambient_C", "S.stator_temp_C", "ref.S.front_bearing_temp_C"];
+        let soaked = recording(&columns, |c, t| match c {
+            "S.stator_temp_C" => 20.0 + 0.01 * t,
+            _ => 20.0,
+        });
+        let spread_on = |sim: &Recording, real: &Recording, target: &str| {
+            let aligned = Aligned::new(sim, real, target).expect("aligned");
+            aligned.simulated_start_spread_k(target)
+        };
+        let bearing = "ref.S.front_bearing_temp_C";
+        let spread = spread_on(&soaked, &soaked, bearing).expect("three temperatures");
+        assert!(spread < 0.05, "soaked: {spread} K");
+
+        // An hour into a run: the winding 4 K and the bearing 2 K above the room.
+        let warm = recording(&columns, |c, _| match c {
+            "S.stator_temp_C" => 24.0,
+            "ref.S.front_bearing_temp_C" => 22.0,
+            _ => 20.0,
+        });
+        assert_eq!(spread_on(&warm, &warm, bearing), Some(4.0));
+        // The target's own start says nothing: a miscalibrated winding is not a warm one.
+        assert_eq!(spread_on(&warm, &warm, "S.stator_temp_C"), Some(2.0));
+        let miscalibrated = recording(&columns, |c, _| match c {
+            "S.stator_temp_C" => 18.6,
+            _ => 20.0,
+        });
+        assert_eq!(
+            spread_on(&miscalibrated, &soaked, "S.stator_temp_C"),
+            Some(0.0)
+        );
+
+        // A simulation without the room is read against the real one.
+        let without_room = recording(&["S.stator_temp_C", bearing], |_, _| 24.0);
+        assert_eq!(spread_on(&without_room, &soaked, bearing), Some(4.0));
+        // A simulation of the target alone says nothing of the machine.
+        let winding = recording(&["S.stator_temp_C"], |_, _| 24.0);
+        assert_eq!(spread_on(&winding, &soaked, "S.stator_temp_C"), None);
     }
 }
