@@ -1977,6 +1977,7 @@ mod tests {
                 axis: None,
                 state: false,
                 refinements: Vec::new(),
+                free_start: None,
             };
             binned_with_scales(&family, &ctx, &[], &bins)
         };

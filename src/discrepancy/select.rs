@@ -1534,6 +1534,7 @@ mod tests {
             axis: None,
             state: false,
             refinements: Vec::new(),
+            free_start: None,
         }
     }
 
