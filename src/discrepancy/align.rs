@@ -3,6 +3,7 @@
 
 use super::DiscrepancyError;
 use super::censor::Censoring;
+use crate::signal::Quantity;
 use crate::signal::Recording;
 use crate::signal::channel::{AMBIENT, Channel};
 
@@ -206,30 +207,33 @@ impl<'a> Aligned<'a> {
     }
 
     /// How far apart the simulated machine's temperatures are at the first aligned row, K:
-    /// every °C column of the simulation but `target` and the room (the simulation's
-    /// `ambient_C`, else the real one's), each at the first row alone: a soaked machine
-    /// starts warming at once, and a nut sampled every 10 s had risen 0.5 K over the first
-    /// five. A machine soaked in its room starts with them together; apart, the recording
-    /// starts mid-run. The target itself is left out: it may carry the
-    /// miscalibration the analysis is there to find (0.6 K + 1.04 × a soaked winding starts
-    /// 1.4 K from its room). `None` when there are not two temperatures to compare.
+    /// its windings (`<axis>.stator_temp_C`), its reference temperatures (`ref.*_C`) and its
+    /// room (`ambient_C`), but `target`, each at the first row alone (a soaked machine starts
+    /// warming at once: a nut sampled every 10 s had risen 0.5 K over its first five rows).
+    /// A machine soaked in its room starts with them together; apart, the recording starts
+    /// mid-run. The target is left out because it may carry the miscalibration the analysis
+    /// is there to find (0.6 K + 1.04 × a soaked winding starts 1.4 K from its room). Only the
+    /// simulation's own machine columns count: a simulation without a room may have assumed
+    /// any (soaked at a nominal 20 °C in a shop at 23 °C), and a coolant supply or an
+    /// estimate is no part of the machine's state. `None` when there are not two
+    /// temperatures to compare.
     pub fn simulated_start_spread_k(&self, target: &str) -> Option<f64> {
-        let at_start = |column: &[f64], index: &Index| {
-            let first = interpolate(column, index.get(..1)?);
-            first.first().copied().filter(|t| t.is_finite())
+        let of_the_machine = |name: &str| match Channel::parse(name) {
+            Channel::Ambient => true,
+            Channel::Servo { quantity, .. } => quantity == Quantity::StatorTemp,
+            Channel::Reference { .. } => Channel::unit_of(name) == Some("°C"),
+            _ => false,
         };
-        let mut temperatures: Vec<f64> = self
+        let temperatures: Vec<f64> = self
             .sim
             .names()
             .iter()
-            .filter(|name| *name != target && Channel::unit_of(name) == Some("°C"))
-            .filter_map(|name| at_start(self.sim.try_column(name)?, &self.sim_index))
+            .filter(|name| *name != target && of_the_machine(name))
+            .filter_map(|name| {
+                let first = interpolate(self.sim.try_column(name)?, self.sim_index.get(..1)?);
+                first.first().copied().filter(|t| t.is_finite())
+            })
             .collect();
-        if self.sim.try_column(AMBIENT).is_none()
-            && let Some(room) = self.real.try_column(AMBIENT)
-        {
-            temperatures.extend(at_start(room, &self.real_index));
-        }
         let (lo, hi) = temperatures
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
@@ -405,11 +409,18 @@ mod tests {
             Some(0.0)
         );
 
-        // A simulation without the room is read against the real one.
+        // A simulation without a room may have assumed any: its own temperatures alone
+        // count, not the real room.
         let without_room = recording(&["S.stator_temp_C", bearing], |_, _| 24.0);
-        assert_eq!(spread_on(&without_room, &soaked, bearing), Some(4.0));
-        // A simulation of the target alone says nothing of the machine.
-        let winding = recording(&["S.stator_temp_C"], |_, _| 24.0);
-        assert_eq!(spread_on(&winding, &soaked, "S.stator_temp_C"), None);
+        assert_eq!(spread_on(&without_room, &soaked, bearing), None);
+        let apart = recording(&["S.stator_temp_C", "X.stator_temp_C", bearing], |c, _| {
+            if c == "X.stator_temp_C" { 21.0 } else { 24.0 }
+        });
+        assert_eq!(spread_on(&apart, &apart, bearing), Some(3.0));
+        // A coolant supply or an estimate is no part of the machine's state.
+        let supply = recording(&["ambient_C", "coolant_supply_C", bearing], |c, _| {
+            if c == "coolant_supply_C" { 14.0 } else { 20.0 }
+        });
+        assert_eq!(spread_on(&supply, &supply, bearing), None);
     }
 }

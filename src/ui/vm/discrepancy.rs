@@ -297,7 +297,8 @@ fn parameter_value(name: &str, value: f64, target_unit: &str) -> String {
         | "friction_step"
         | "stribeck_excess"
         | "variation"
-        | "offset_at_start" => target_unit.to_string(),
+        | "offset_at_start"
+        | "already_at_start" => target_unit.to_string(),
         // share, gain, exponent, relative_change_at_1000rpm: ratios.
         _ => String::new(),
     };
@@ -403,6 +404,7 @@ mod tests {
         assert_eq!(parameter_value("gain_per_K", 3.8, "µm"), "3.8000 µm/K");
         assert_eq!(parameter_value("per_A2", 0.5, "°C"), "0.5000 °C/A²");
         assert_eq!(parameter_value("effect_range", 2.0, "°C"), "2.0000 °C");
+        assert_eq!(parameter_value("already_at_start", 6.6, "°C"), "6.6000 °C");
         assert_eq!(parameter_value("share", 0.5, "°C"), "0.5000");
         assert_eq!(parameter_value("gain_per_K", 3.8, ""), "3.8000 1/K");
         assert_eq!(
