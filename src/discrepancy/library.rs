@@ -3189,7 +3189,7 @@ pub fn explain(
             cause.explanation,
             winding = cause.winding,
         );
-        let start = start_note(family, theta, coefficients, ctx, &mut p);
+        let start = start_note(family, theta, coefficients, ctx, &unit, &mut p);
         return (p, text + &start);
     }
     let text = match family.kind {
@@ -3590,18 +3590,19 @@ pub fn explain(
             }
         }
     };
-    let start = start_note(family, theta, coefficients, ctx, &mut p);
+    let start = start_note(family, theta, coefficients, ctx, &unit, &mut p);
     (p, text + &coolant_note + &start)
 }
 
 /// What a member freed at the start ([`Family::free_start`]) held at the first row, in
 /// `p` as `already_at_start` and in words: the sum of its start columns' coefficients, each
-/// column 1 there.
+/// column 1 there. `unit` is the target's, as the explanation writes it.
 fn start_note(
     family: &Family,
     theta: &[f64],
     coefficients: &[f64],
     ctx: &Context,
+    unit: &str,
     p: &mut BTreeMap<String, f64>,
 ) -> String {
     let starts = family.start_columns(theta);
@@ -3611,11 +3612,6 @@ fn start_note(
     let width = family.driver_width(theta, coefficients.len());
     let already: f64 = coefficients.iter().skip(width).sum();
     p.insert("already_at_start".into(), already);
-    let unit = if ctx.unit.is_empty() {
-        String::new()
-    } else {
-        format!(" {}", ctx.unit)
-    };
     format!(
         "; the recording starts mid-run (the simulated temperatures {:.1} K apart at its first row) and {already:+.3}{unit} of this was already there then",
         ctx.start_spread_k.unwrap_or(0.0)

@@ -48,15 +48,23 @@ pub fn lowpass_on_grid(
 /// recording began.
 pub fn decay_of_start(time: &[f64], tau_s: f64, switch: Option<(&[f64], f64)>) -> Vec<f64> {
     let mut out = Vec::with_capacity(time.len());
-    let mut exponent = 0.0;
+    let mut state = 1.0;
     let mut previous_t = time.first().copied().unwrap_or(0.0);
+    // As in [`switched_per_row`], the exponential is recomputed only when the step or the
+    // rate changes, which on a regular grid is when the switch does.
+    let (mut last_step, mut last_rate, mut keep) = (f64::NAN, f64::NAN, 1.0);
     for (i, &t) in time.iter().enumerate() {
         let rate = switch.map_or(1.0, |(s, speedup)| {
             1.0 + speedup * s.get(i).copied().unwrap_or(0.0)
         });
-        exponent += (t - previous_t) * rate / tau_s;
+        let step = t - previous_t;
+        if step != last_step || rate != last_rate {
+            keep = (-step * rate / tau_s).exp();
+            (last_step, last_rate) = (step, rate);
+        }
+        state *= keep;
         previous_t = t;
-        out.push((-exponent).exp());
+        out.push(state);
     }
     out
 }
