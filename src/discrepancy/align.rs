@@ -19,6 +19,11 @@ const COARSER_FACTOR: f64 = 1.5;
 /// For each aligned row: the source row at or before it and the fraction towards the next.
 pub type Index = Vec<(usize, f64)>;
 
+/// A speed steps between two samples of the interpolated recording when it changes there by
+/// more than this many times the two recordings' speed noise together (then the other
+/// recording's speed at the instant says where in the step it falls to within a tenth).
+const SPEED_STEP_NOISES: f64 = 10.0;
+
 /// Most rows the real recording may have inside the overlap for the corrections to be built
 /// at its own rate when the comparison runs at a coarser simulation's instants (see
 /// [`Aligned::real_rate`]): ten times the rows the performance target allows an analysis.
@@ -47,6 +52,8 @@ pub struct Aligned<'a> {
     pub resampled: bool,
     /// True when the grid is the simulation's (it is clearly coarser than the real one).
     pub on_simulation_grid: bool,
+    /// Rows placed by the speeds (see [`placed_by_speeds`]) instead of linearly in time.
+    pub placed_by_speed: usize,
     /// Time of every aligned row, s.
     pub time: Vec<f64>,
     /// The real target.
@@ -163,6 +170,16 @@ impl<'a> Aligned<'a> {
         }
         let (real_index, real_resampled) = index_onto(rt, &time, real_step);
         let (sim_index, sim_resampled) = index_onto(st, &time, real_step.min(sim_step));
+        // The recording whose own rows these are guides the other one's interpolation.
+        let (real_index, sim_index, placed_by_speed) = if on_simulation_grid {
+            let (real_index, placed) =
+                placed_by_speeds(real_index, real, sim, &sim_index, Sides::Held);
+            (real_index, sim_index, placed)
+        } else {
+            let (sim_index, placed) =
+                placed_by_speeds(sim_index, sim, real, &real_index, Sides::Extended);
+            (real_index, sim_index, placed)
+        };
         let mut aligned = Aligned {
             real,
             sim,
@@ -170,6 +187,7 @@ impl<'a> Aligned<'a> {
             sim_index,
             resampled: on_simulation_grid || real_resampled || sim_resampled,
             on_simulation_grid,
+            placed_by_speed,
             time,
             real_target: Vec::new(),
             sim_target: Vec::new(),
@@ -242,6 +260,17 @@ impl<'a> Aligned<'a> {
         (temperatures.len() >= 2).then_some(hi - lo)
     }
 
+    /// What the interpolation did where a speed steps between two samples, after `whose`
+    /// speeds placed the instant; empty when it never did.
+    fn placed_note(&self, whose: &str) -> String {
+        match self.placed_by_speed {
+            0 => String::new(),
+            rows => format!(
+                ", but for {rows} rows that fall inside a step of a speed: there the instant was placed where {whose} speeds put it, before the step, after it or that far through it, since a torque or a current steps with the speed and halfway in time is neither side"
+            ),
+        }
+    }
+
     /// One sentence on how the two recordings were joined.
     pub fn note(&self) -> String {
         let span = format!(
@@ -257,13 +286,15 @@ impl<'a> Aligned<'a> {
                 "the corrections were built at those instants (the real recording has too many rows to build them on its own)"
             };
             format!(
-                "the simulation's grid is coarser: the real recording ({} rows) was compared at the simulation's instants (linearly interpolated where they fall between its rows), since between its samples the simulation holds nothing to compare; {built}; {span}",
-                self.real.len()
+                "the simulation's grid is coarser: the real recording ({} rows) was compared at the simulation's instants (linearly interpolated where they fall between its rows{}), since between its samples the simulation holds nothing to compare; {built}; {span}",
+                self.real.len(),
+                self.placed_note("the simulation's"),
             )
         } else if self.resampled {
             format!(
-                "the time grids differ: the simulation ({} rows) was linearly interpolated onto the real recording's grid; {span}",
-                self.sim.len()
+                "the time grids differ: the simulation ({} rows) was linearly interpolated onto the real recording's grid{}; {span}",
+                self.sim.len(),
+                self.placed_note("the real"),
             )
         } else {
             format!("both recordings share the time grid; {span}")
@@ -337,12 +368,138 @@ pub fn index_onto(source: &[f64], times: &[f64], step: f64) -> (Index, bool) {
     (index, resampled)
 }
 
-/// `column` read at `index` by linear interpolation.
+/// `index` (where each aligned row falls in `source`) with the rows that fall inside a step
+/// of a speed placed by the speeds, and how many were. The speeds are the operating program,
+/// which a simulation shares with the machine: where one steps between two samples of
+/// `source` (a reversal, a move starting), a torque or a current steps with it, and the
+/// linear interpolation's halfway value is neither side — on a simulation exported half a
+/// sample off the real grid it left the X torque 8 × its noise from a machine with nothing
+/// left out. There the instant is placed where `other`'s speed at it (its own row, read
+/// through `other_index`) falls between the two samples' speeds: before the step, after it,
+/// or that far through a ramp. The speed that steps most (for its range) decides. Elsewhere
+/// the fraction in time stands. How a side is read is `sides`.
+fn placed_by_speeds(
+    index: Index,
+    source: &Recording,
+    other: &Recording,
+    other_index: &Index,
+    sides: Sides,
+) -> (Index, usize) {
+    if !index.iter().any(|&(_, f)| f > 0.0 && f < 1.0) {
+        return (index, 0);
+    }
+    let speeds: Vec<(&[f64], Vec<f64>, f64, f64)> = source
+        .names()
+        .iter()
+        .filter(|name| {
+            matches!(
+                Channel::parse(name),
+                Channel::Servo {
+                    quantity: Quantity::Speed,
+                    ..
+                }
+            )
+        })
+        .filter_map(|name| {
+            let own = source.try_column(name)?;
+            let others = other.try_column(name)?;
+            let noise = difference_noise(own).hypot(difference_noise(others));
+            let (lo, hi) = own
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(*v), hi.max(*v))
+                });
+            let range = hi - lo;
+            (range.is_finite() && range > 0.0)
+                .then(|| (own, interpolate(others, other_index), noise, range))
+        })
+        .collect();
+    if speeds.is_empty() {
+        return (index, 0);
+    }
+    let steps_within = |j: usize| {
+        speeds.iter().any(|(own, _, noise, _)| {
+            matches!((own.get(j), own.get(j + 1)), (Some(a), Some(b)) if (b - a).abs() > SPEED_STEP_NOISES * noise)
+        })
+    };
+    let time = source.time();
+    // The fraction of row `from`'s interval at which `t` lies (outside [0, 1] when `t` lies
+    // beyond it): the straight line through that interval, extended.
+    let along = |from: usize, t: f64| {
+        let span = time[from + 1] - time[from];
+        (span > 0.0).then(|| (from, (t - time[from]) / span))
+    };
+    let mut placed = 0;
+    let index = index
+        .into_iter()
+        .enumerate()
+        .map(|(row, (j, fraction))| {
+            if fraction <= 0.0 || fraction >= 1.0 || j + 1 >= time.len() {
+                return (j, fraction);
+            }
+            let by_speed = speeds
+                .iter()
+                .filter_map(|(own, at, noise, range)| {
+                    let (before, after) = (*own.get(j)?, *own.get(j + 1)?);
+                    let step = after - before;
+                    let there = *at.get(row)?;
+                    (step.abs() > SPEED_STEP_NOISES * noise && there.is_finite()).then(|| {
+                        (
+                            step.abs() / range,
+                            ((there - before) / step).clamp(0.0, 1.0),
+                        )
+                    })
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            let Some((_, at)) = by_speed else {
+                return (j, fraction);
+            };
+            placed += 1;
+            let t = time[j] + fraction * (time[j + 1] - time[j]);
+            let extended = match sides {
+                Sides::Extended if at == 0.0 && j >= 1 && !steps_within(j - 1) => along(j - 1, t),
+                Sides::Extended if at == 1.0 && j + 2 < time.len() && !steps_within(j + 1) => {
+                    along(j + 1, t)
+                }
+                _ => None,
+            };
+            extended.unwrap_or((j, at))
+        })
+        .collect();
+    (index, placed)
+}
+
+/// How [`placed_by_speeds`] reads an instant it places before or after a step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sides {
+    /// At that side's sample: a measured recording, whose noise a line through two of its
+    /// samples, extended, would amplify.
+    Held,
+    /// On the line through that side's own interval, extended to the instant, where that
+    /// interval has no step of its own: a simulation's values are exact, and what moves
+    /// steadily on each side (a preload's drag along the stroke at the end it reverses) is
+    /// read at the instant instead of a sample away.
+    Extended,
+}
+
+/// A signal's white noise (σ) from its sample-to-sample differences, robust to its steps:
+/// 0 for a signal held exactly between changes (a commanded speed, a noise-free simulation).
+fn difference_noise(values: &[f64]) -> f64 {
+    let differences: Vec<f64> = values
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| d.is_finite())
+        .collect();
+    super::series::robust_sigma(&differences) / std::f64::consts::SQRT_2
+}
+
+/// `column` read at `index` by linear interpolation (extended beyond the interval where its
+/// fraction lies outside [0, 1]).
 pub fn interpolate(column: &[f64], index: &[(usize, f64)]) -> Vec<f64> {
     index
         .iter()
         .map(|&(j, f)| {
-            if f > 0.0 && j + 1 < column.len() {
+            if f != 0.0 && j + 1 < column.len() {
                 column[j] + f * (column[j + 1] - column[j])
             } else {
                 column[j]
@@ -422,5 +579,100 @@ mod tests {
             if c == "coolant_supply_C" { 14.0 } else { 20.0 }
         });
         assert_eq!(spread_on(&supply, &supply, bearing), None);
+    }
+
+    /// A feed axis reversing every 7 s, as a zero-order hold would record it at `times`: its
+    /// speed ±300 rpm and its torque `torque(direction, t)`, which steps with the direction.
+    fn reversing_axis(
+        times: impl Iterator<Item = f64>,
+        speed_noise: f64,
+        torque: impl Fn(f64, f64) -> f64,
+    ) -> Recording {
+        let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
+            .map(String::from)
+            .to_vec();
+        let mut recording = Recording::new("axis", names).expect("a valid header");
+        for (k, t) in times.enumerate() {
+            let direction = if (t.floor() as i64 / 7) % 2 == 0 {
+                1.0
+            } else {
+                -1.0
+            };
+            // A deterministic ripple standing in for the speed's noise.
+            let ripple = speed_noise * if k % 2 == 0 { 1.0 } else { -1.0 };
+            recording
+                .push_row(&[t, 300.0 * direction + ripple, torque(direction, t)])
+                .expect("a valid row");
+        }
+        recording
+    }
+
+    /// ±0.5 N·m, the same at every point of the stroke.
+    fn plain(direction: f64, _: f64) -> f64 {
+        0.5 * direction
+    }
+
+    #[test]
+    fn a_simulation_half_a_sample_off_the_grid_is_taken_on_the_side_of_a_step_the_speed_shows() {
+        let real = reversing_axis((0..200).map(f64::from), 2.0, plain);
+        let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, plain);
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        assert!(aligned.resampled);
+        // Every reversal falls between two of the simulation's samples.
+        assert_eq!(aligned.placed_by_speed, 28);
+        // As far through the step as the real speed, with its noise, shows: within a
+        // hundredth of it.
+        for (got, want) in aligned.sim_target.iter().zip(&aligned.real_target) {
+            assert!((got - want).abs() < 0.01, "{got} against {want}");
+        }
+        assert!(
+            aligned
+                .note()
+                .contains("28 rows that fall inside a step of a speed")
+        );
+
+        // Linearly in time, each reversal's row would read 0 N·m, neither side.
+        let (index, _) = index_onto(sim.time(), &aligned.time, 1.0);
+        let torque = sim.try_column("X.torque_Nm").expect("the torque");
+        let linear = interpolate(torque, &index);
+        assert_eq!(linear.iter().filter(|v| v.abs() < 1e-12).count(), 28);
+
+        // What moves steadily on each side of a reversal (a drag that grows along the stroke)
+        // is read at the instant, on the line through that side's own samples.
+        let drag = |direction: f64, t: f64| direction * (0.5 + 0.01 * t);
+        let real = reversing_axis((0..200).map(f64::from), 0.0, drag);
+        let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, drag);
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        assert_eq!(aligned.placed_by_speed, 28);
+        for (got, want) in aligned.sim_target.iter().zip(&aligned.real_target) {
+            assert!((got - want).abs() < 1e-9, "{got} against {want}");
+        }
+
+        // A ramp through the interval is placed as far through it as the speed has got.
+        let ramp = |offset: f64| {
+            let names = ["time_s", "X.speed_rpm"].map(String::from).to_vec();
+            let mut r = Recording::new("ramp", names).expect("a valid header");
+            for k in 0..100 {
+                let t = f64::from(k) + offset;
+                r.push_row(&[t, 10.0 * t]).expect("a valid row");
+            }
+            r
+        };
+        let (real, sim) = (ramp(0.0), ramp(0.25));
+        let aligned = Aligned::new(&sim, &real, "X.speed_rpm").expect("aligned");
+        for (got, want) in aligned.sim_target.iter().zip(&aligned.real_target) {
+            assert!((got - want).abs() < 1e-9, "{got} against {want}");
+        }
+    }
+
+    #[test]
+    fn a_speed_that_moves_within_its_noise_places_nothing() {
+        // The real speed's noise (±40 rpm) is more than a tenth of the steps (300 → −300):
+        // it cannot say where an instant falls, and the interpolation stays linear.
+        let real = reversing_axis((0..200).map(f64::from), 40.0, plain);
+        let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, plain);
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        assert_eq!(aligned.placed_by_speed, 0);
+        assert!(!aligned.note().contains("step of a speed"));
     }
 }

@@ -1113,6 +1113,7 @@ fn analyse_with(
         alignment: Alignment {
             resampled: aligned.resampled,
             on_simulation_grid: aligned.on_simulation_grid,
+            placed_by_speed: aligned.placed_by_speed,
             note: aligned.note(),
             start_s: ctx.time.first().copied().unwrap_or(0.0),
             end_s: ctx.time.last().copied().unwrap_or(0.0),

@@ -143,6 +143,10 @@ pub struct Alignment {
     /// the real recording's (the real one taken at the simulation's instants); otherwise on
     /// the real recording's grid, with the simulation interpolated onto it when they differ.
     pub on_simulation_grid: bool,
+    /// Rows where a speed steps between two samples of the interpolated recording, placed
+    /// where the other recording's speed shows the instant (before the step, after it or that
+    /// far through it) instead of linearly in time; the note says so.
+    pub placed_by_speed: usize,
     /// A sentence.
     pub note: String,
     /// First aligned time, s.

@@ -383,6 +383,7 @@ mod tests {
             alignment: crate::discrepancy::Alignment {
                 resampled: false,
                 on_simulation_grid: false,
+                placed_by_speed: 0,
                 note: String::new(),
                 start_s: 0.0,
                 end_s: 999.0,
