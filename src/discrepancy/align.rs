@@ -410,8 +410,12 @@ fn placed_by_speeds(
                     (lo.min(*v), hi.max(*v))
                 });
             let range = hi - lo;
-            (range.is_finite() && range > 0.0)
-                .then(|| (own, interpolate(others, other_index), noise, range))
+            if !(range.is_finite() && range > 0.0) {
+                return None;
+            }
+            let at = interpolate(others, other_index);
+            speeds_agree(own, &index, &at, SPEED_STEP_NOISES * noise, range)
+                .then_some((own, at, noise, range))
         })
         .collect();
     if speeds.is_empty() {
@@ -468,6 +472,32 @@ fn placed_by_speeds(
         .collect();
     (index, placed)
 }
+
+/// Whether a speed of the interpolated recording (`own`, read at the aligned rows through
+/// `index`) and the other recording's at those rows (`at`) are one program: where `own` holds
+/// steady across the interval (no change beyond `step`), at least [`SPEED_AGREEMENT`] of the
+/// rows read the same within `step` or a hundredth of the speed's range. A speed of the other
+/// sign (another convention), of another scale (motor against spindle) or of another program
+/// cannot say where an instant falls.
+fn speeds_agree(own: &[f64], index: &Index, at: &[f64], step: f64, range: f64) -> bool {
+    let tolerance = step.max(0.01 * range);
+    let (steady, agreeing) = index
+        .iter()
+        .zip(at)
+        .filter_map(|(&(j, _), &there)| {
+            let (before, after) = (*own.get(j)?, *own.get(j + 1).unwrap_or(own.get(j)?));
+            ((after - before).abs() <= step).then(|| (there - before).abs() <= tolerance)
+        })
+        .fold((0usize, 0usize), |(n, k), agrees| {
+            (n + 1, k + usize::from(agrees))
+        });
+    steady > 0 && agreeing as f64 >= SPEED_AGREEMENT * steady as f64
+}
+
+/// Share of the steady rows on which two recordings' speeds must agree to place instants
+/// ([`speeds_agree`]): a transport delay makes the real speed disagree for its length after
+/// every change, which leaves most rows of a run agreeing.
+const SPEED_AGREEMENT: f64 = 0.9;
 
 /// How [`placed_by_speeds`] reads an instant it places before or after a step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -674,5 +704,31 @@ mod tests {
         let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
         assert_eq!(aligned.placed_by_speed, 0);
         assert!(!aligned.note().contains("step of a speed"));
+    }
+
+    #[test]
+    fn a_speed_of_another_sign_or_scale_places_nothing() {
+        let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, plain);
+        let real = reversing_axis((0..200).map(f64::from), 0.0, plain);
+        for factor in [-1.0, 3.0] {
+            // The same run, its speed written in another convention (the other sign, or the
+            // spindle's speed behind a 1 : 3 gear).
+            let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
+                .map(String::from)
+                .to_vec();
+            let mut other = Recording::new("other", names).expect("a valid header");
+            for row in 0..real.len() {
+                let value = |name: &str| real.try_column(name).expect("a column")[row];
+                other
+                    .push_row(&[
+                        value("time_s"),
+                        factor * value("X.speed_rpm"),
+                        value("X.torque_Nm"),
+                    ])
+                    .expect("a valid row");
+            }
+            let aligned = Aligned::new(&sim, &other, "X.torque_Nm").expect("aligned");
+            assert_eq!(aligned.placed_by_speed, 0, "speed × {factor}");
+        }
     }
 }
