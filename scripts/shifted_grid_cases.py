@@ -6,10 +6,12 @@ started, a trace when the operator pressed the button. This script writes the ca
 `scripts/independent_cases.py` (every effect and `nothing`, the same machine, program, noise
 and seeds) with the real recording at 1 Hz (`--every 2`, the default) or 0.5 Hz (`--every 4`)
 and the simulation at the same rate but half a sample later: its values are the machine's
-own at those instants, not an interpolation, so nothing but the grid differs. Each pair is
-asked about the nine targets, as a user would:
+own at those instants, not an interpolation, so nothing but the grid differs. With
+`--jitter SECONDS` the simulation stays on the regular grid and the real recording's time
+stamps are jittered instead, each by a uniform draw within ±SECONDS (a trace whose samples
+are not taken exactly on time). Each pair is asked about the nine targets, as a user would:
 
-    SERVOSIGHT_BINARY=target/release/servosight python3 scripts/shifted_grid_cases.py OUT 1,2,3,4 [--every 4]
+    SERVOSIGHT_BINARY=target/release/servosight python3 scripts/shifted_grid_cases.py OUT 1,2,3,4 [--every 4] [--jitter 0.1]
 
 (about five minutes per rate on 2 cores). It prints one line per report, then how many large
 effects (at least 3 σ) were named first, how many reports where the effect does not reach the
@@ -21,30 +23,30 @@ import concurrent.futures
 import json
 import math
 import os
-import subprocess
 import sys
 
 import numpy as np
 
 import independent_cases as ic
-from discrepancy_sweep import ABSENT, EFFECTS, LARGE
+from discrepancy_sweep import ABSENT, EFFECTS, LARGE, analyse
 
-BINARY = os.environ.get("SERVOSIGHT_BINARY", "target/release/servosight")
-
-
-def write(path, signals, every, start, columns):
+def write(path, signals, every, start, columns, jitter_rng=None, jitter=0.0):
     rows = np.column_stack([np.arange(len(signals["ambient_C"])) * ic.DT]
                            + [signals[c] for c in columns])[start::every]
+    if jitter_rng is not None:
+        rows[:, 0] += jitter_rng.uniform(-jitter, jitter, len(rows))
+        rows[0, 0] = max(rows[0, 0], 0.0)
     with open(path, "w") as f:
         f.write("# source: scripts/shifted_grid_cases.py\n")
         f.write(",".join(["time_s"] + columns) + "\n")
         np.savetxt(f, rows, delimiter=",", fmt="%.6g")
 
 
-def make_case(out, seed, effect, every):
+def make_case(out, seed, effect, every, jitter):
     """One case of `independent_cases.py` (the same draws), both files every `every` steps of
-    its grid, the simulation's rows half that later."""
-    d = os.path.join(out, f"{effect}-{seed}-every{every}")
+    its grid, the simulation's rows half that later or, with `jitter`, the real one's time
+    stamps jittered."""
+    d = os.path.join(out, f"{effect}-{seed}-every{every}" + (f"-jitter{jitter:g}" if jitter else ""))
     if os.path.exists(os.path.join(d, "sizes.json")):
         return d
     os.makedirs(d, exist_ok=True)
@@ -62,8 +64,13 @@ def make_case(out, seed, effect, every):
     noise_rng = np.random.default_rng(ic.noise_seed(seed, effect))
     real = ic.measured(noise_rng, full, effect, correlated, delay_s, offsets)
     columns = ic.OPERATING + ic.TARGETS
-    write(os.path.join(d, "real.csv"), real, every, 0, columns)
-    write(os.path.join(d, "sim.csv"), sim, every, every // 2, columns)
+    if jitter:
+        write(os.path.join(d, "real.csv"), real, every, 0, columns,
+              np.random.default_rng(seed + 1000), jitter)
+        write(os.path.join(d, "sim.csv"), sim, every, 0, columns)
+    else:
+        write(os.path.join(d, "real.csv"), real, every, 0, columns)
+        write(os.path.join(d, "sim.csv"), sim, every, every // 2, columns)
     sizes = {}
     for t in ic.TARGETS:
         effect_signal = ic.measured_clean(full, t, effect, delay_s, offsets) - sim[t]
@@ -76,30 +83,28 @@ def make_case(out, seed, effect, every):
     return d
 
 
-def analyse(d, target):
-    report_path = os.path.join(d, target + ".json")
-    if not os.path.exists(report_path):
-        run = subprocess.run([BINARY, "discrepancy", "--sim", f"{d}/sim.csv", "--real",
-                              f"{d}/real.csv", "--target", target, "--json", report_path],
-                             capture_output=True, text=True)
-        if run.returncode != 0:
-            return None, run.stderr.strip()
-    return json.load(open(report_path)), None
-
-
 def main():
     args = [a for a in sys.argv[1:]]
-    every = 2
-    if "--every" in args:
-        at = args.index("--every")
-        every = int(args[at + 1])
-        del args[at:at + 2]
-    if len(args) != 2 or every < 2 or every % 2:
-        sys.exit("usage: shifted_grid_cases.py OUT SEEDS [--every EVEN_STEPS]")
+    every, jitter = 2, 0.0
+    try:
+        if "--every" in args:
+            at = args.index("--every")
+            every = int(args[at + 1])
+            del args[at:at + 2]
+        if "--jitter" in args:
+            at = args.index("--jitter")
+            jitter = float(args[at + 1])
+            del args[at:at + 2]
+    except (IndexError, ValueError):
+        sys.exit("usage: shifted_grid_cases.py OUT SEEDS [--every EVEN_STEPS] [--jitter SECONDS]")
+    if len(args) != 2 or every < 2 or every % 2 or not 0 <= jitter < every * ic.DT / 2:
+        sys.exit("usage: shifted_grid_cases.py OUT SEEDS [--every EVEN_STEPS] [--jitter SECONDS]"
+                 " (a jitter below half a sample)")
     out, seeds = args[0], [int(s) for s in args[1].split(",")]
     cases = [(s, e) for s in seeds for e in EFFECTS + ["nothing"]]
     with concurrent.futures.ProcessPoolExecutor(2) as pool:
-        dirs = list(pool.map(make_case, [out] * len(cases), *zip(*cases), [every] * len(cases)))
+        dirs = list(pool.map(make_case, [out] * len(cases), *zip(*cases), [every] * len(cases),
+                             [jitter] * len(cases)))
     jobs = [(d, e, t) for d, (_, e) in zip(dirs, cases) for t in ic.TARGETS]
     with concurrent.futures.ThreadPoolExecutor(2) as pool:
         reports = list(pool.map(lambda j: analyse(j[0], j[2]), jobs))
