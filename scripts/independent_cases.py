@@ -244,13 +244,20 @@ def clean_hours(n):
     return np.arange(n) * DT / 3600
 
 
-def write(path, signals, every, columns):
+def write(path, signals, every, columns, start=0, time_offsets=None,
+          source="scripts/independent_cases.py"):
+    """Every `every`-th row from `start`, with `time_offsets` (one per row written) added to
+    the time stamps, written to the 0.1 ms then."""
     rows = np.column_stack([np.arange(len(signals["ambient_C"])) * DT]
-                           + [signals[c] for c in columns])[::every]
+                           + [signals[c] for c in columns])[start::every]
+    fmt = "%.6g"
+    if time_offsets is not None:
+        rows[:, 0] = np.maximum(rows[:, 0] + time_offsets[:len(rows)], 0.0)
+        fmt = ["%.4f"] + ["%.6g"] * len(columns)
     with open(path, "w") as f:
-        f.write("# source: scripts/independent_cases.py\n")
+        f.write(f"# source: {source}\n")
         f.write(",".join(["time_s"] + columns) + "\n")
-        np.savetxt(f, rows, delimiter=",", fmt="%.6g")
+        np.savetxt(f, rows, delimiter=",", fmt=fmt)
 
 
 def make_case(out, seed, effect, long_hours=None):

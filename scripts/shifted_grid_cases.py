@@ -30,18 +30,6 @@ import numpy as np
 import independent_cases as ic
 from discrepancy_sweep import ABSENT, EFFECTS, LARGE, analyse
 
-def write(path, signals, every, start, columns, jitter_rng=None, jitter=0.0):
-    rows = np.column_stack([np.arange(len(signals["ambient_C"])) * ic.DT]
-                           + [signals[c] for c in columns])[start::every]
-    if jitter_rng is not None:
-        rows[:, 0] += jitter_rng.uniform(-jitter, jitter, len(rows))
-        rows[0, 0] = max(rows[0, 0], 0.0)
-    with open(path, "w") as f:
-        f.write("# source: scripts/shifted_grid_cases.py\n")
-        f.write(",".join(["time_s"] + columns) + "\n")
-        np.savetxt(f, rows, delimiter=",", fmt="%.6g")
-
-
 def make_case(out, seed, effect, every, jitter):
     """One case of `independent_cases.py` (the same draws), both files every `every` steps of
     its grid, the simulation's rows half that later or, with `jitter`, the real one's time
@@ -64,13 +52,17 @@ def make_case(out, seed, effect, every, jitter):
     noise_rng = np.random.default_rng(ic.noise_seed(seed, effect))
     real = ic.measured(noise_rng, full, effect, correlated, delay_s, offsets)
     columns = ic.OPERATING + ic.TARGETS
+    here = "scripts/shifted_grid_cases.py"
     if jitter:
-        write(os.path.join(d, "real.csv"), real, every, 0, columns,
-              np.random.default_rng(seed + 1000), jitter)
-        write(os.path.join(d, "sim.csv"), sim, every, 0, columns)
+        rows = len(real["ambient_C"]) // every + 1
+        late = np.random.default_rng(seed + 1000).uniform(-jitter, jitter, rows)
+        ic.write(os.path.join(d, "real.csv"), real, every, columns, time_offsets=late,
+                 source=here)
+        ic.write(os.path.join(d, "sim.csv"), sim, every, columns, source=here)
     else:
-        write(os.path.join(d, "real.csv"), real, every, 0, columns)
-        write(os.path.join(d, "sim.csv"), sim, every, every // 2, columns)
+        ic.write(os.path.join(d, "real.csv"), real, every, columns, source=here)
+        ic.write(os.path.join(d, "sim.csv"), sim, every, columns, start=every // 2,
+                 source=here)
     sizes = {}
     for t in ic.TARGETS:
         effect_signal = ic.measured_clean(full, t, effect, delay_s, offsets) - sim[t]
@@ -95,12 +87,13 @@ def main():
             at = args.index("--jitter")
             jitter = float(args[at + 1])
             del args[at:at + 2]
+        seeds = [int(s) for s in args[1].split(",")] if len(args) == 2 else []
     except (IndexError, ValueError):
         sys.exit("usage: shifted_grid_cases.py OUT SEEDS [--every EVEN_STEPS] [--jitter SECONDS]")
-    if len(args) != 2 or every < 2 or every % 2 or not 0 <= jitter < every * ic.DT / 2:
+    if not seeds or every < 2 or every % 2 or not 0 <= jitter < every * ic.DT / 2:
         sys.exit("usage: shifted_grid_cases.py OUT SEEDS [--every EVEN_STEPS] [--jitter SECONDS]"
                  " (a jitter below half a sample)")
-    out, seeds = args[0], [int(s) for s in args[1].split(",")]
+    out = args[0]
     cases = [(s, e) for s in seeds for e in EFFECTS + ["nothing"]]
     with concurrent.futures.ProcessPoolExecutor(2) as pool:
         dirs = list(pool.map(make_case, [out] * len(cases), *zip(*cases), [every] * len(cases),

@@ -3,6 +3,8 @@
 
 use super::DiscrepancyError;
 use super::censor::Censoring;
+use super::series;
+use crate::fit::autocorrelation::white_noise_of_steps;
 use crate::signal::Quantity;
 use crate::signal::Recording;
 use crate::signal::channel::{AMBIENT, Channel};
@@ -16,7 +18,9 @@ pub const MIN_ROWS: usize = 60;
 /// an error of the interpolation that the analysis would take for missing physics.
 const COARSER_FACTOR: f64 = 1.5;
 
-/// For each aligned row: the source row at or before it and the fraction towards the next.
+/// For each aligned row: the source row at or before it and the fraction towards the next
+/// — or, for an instant placed on one side of a speed's step, the row that begins that
+/// side's own interval and a fraction outside [0, 1] ([`placed_by_speeds`]).
 pub type Index = Vec<(usize, f64)>;
 
 /// A speed steps between two samples of the interpolated recording when it changes there by
@@ -88,6 +92,18 @@ impl<'a> Aligned<'a> {
             return None;
         }
         Self::join(self.sim, self.real, target, Grid::Real).ok()
+    }
+
+    /// Where each aligned row lies among the real recording's rows from the one at
+    /// `first_s` on (the rows of [`Aligned::real_rate`]): as placed here, so that what is
+    /// built on those rows is read at an instant on the side of a step its real target is
+    /// read on. A row before the first is read at the first.
+    pub fn real_rows_from(&self, first_s: f64) -> Index {
+        let offset = self.real.time().partition_point(|&t| t < first_s);
+        self.real_index
+            .iter()
+            .map(|&(j, f)| j.checked_sub(offset).map_or((0, 0.0), |j| (j, f)))
+            .collect()
     }
 
     /// Whether [`Aligned::real_rate`] gives the real recording's rows.
@@ -252,11 +268,7 @@ impl<'a> Aligned<'a> {
                 first.first().copied().filter(|t| t.is_finite())
             })
             .collect();
-        let (lo, hi) = temperatures
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
-                (lo.min(*t), hi.max(*t))
-            });
+        let (lo, hi) = series::span(&temperatures);
         (temperatures.len() >= 2).then_some(hi - lo)
     }
 
@@ -373,11 +385,13 @@ pub fn index_onto(source: &[f64], times: &[f64], step: f64) -> (Index, bool) {
 /// which a simulation shares with the machine: where one steps between two samples of
 /// `source` (a reversal, a move starting), a torque or a current steps with it, and the
 /// linear interpolation's halfway value is neither side — on a simulation exported half a
-/// sample off the real grid it left the X torque 8 × its noise from a machine with nothing
+/// sample off the real grid it left the X torque 5–8 × its noise from a machine with nothing
 /// left out. There the instant is placed where `other`'s speed at it (its own row, read
-/// through `other_index`) falls between the two samples' speeds: before the step, after it,
-/// or that far through a ramp. The speed that steps most (for its range) decides. Elsewhere
-/// the fraction in time stands. How a side is read is `sides`.
+/// through `other_index`) falls between the two samples' speeds: before the step, after it
+/// (within three noises of either), or that far through a ramp. The speed that steps most
+/// (for its range) decides; only speeds of one program guide ([`GuidingSpeed::agrees`]). Elsewhere,
+/// and where an instant coincides with a sample but for rounding, the fraction in time
+/// stands. How a side is read is `sides`.
 fn placed_by_speeds(
     index: Index,
     source: &Recording,
@@ -385,10 +399,11 @@ fn placed_by_speeds(
     other_index: &Index,
     sides: Sides,
 ) -> (Index, usize) {
-    if !index.iter().any(|&(_, f)| f > 0.0 && f < 1.0) {
+    let between = |f: f64| f > COINCIDING && f < 1.0 - COINCIDING;
+    if !index.iter().any(|&(_, f)| between(f)) {
         return (index, 0);
     }
-    let speeds: Vec<(&[f64], Vec<f64>, f64, f64)> = source
+    let speeds: Vec<GuidingSpeed<'_>> = source
         .names()
         .iter()
         .filter(|name| {
@@ -403,29 +418,24 @@ fn placed_by_speeds(
         .filter_map(|name| {
             let own = source.try_column(name)?;
             let others = other.try_column(name)?;
-            let noise = difference_noise(own).hypot(difference_noise(others));
-            let (lo, hi) = own
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                    (lo.min(*v), hi.max(*v))
-                });
+            let (lo, hi) = series::span(own);
             let range = hi - lo;
             if !(range.is_finite() && range > 0.0) {
                 return None;
             }
-            let at = interpolate(others, other_index);
-            speeds_agree(own, &index, &at, SPEED_STEP_NOISES * noise, range)
-                .then_some((own, at, noise, range))
+            let speed = GuidingSpeed {
+                own,
+                at: interpolate(others, other_index),
+                noise: noise_while_moving(own).hypot(noise_while_moving(others)),
+                range,
+            };
+            speed.agrees(&index).then_some(speed)
         })
         .collect();
     if speeds.is_empty() {
         return (index, 0);
     }
-    let steps_within = |j: usize| {
-        speeds.iter().any(|(own, _, noise, _)| {
-            matches!((own.get(j), own.get(j + 1)), (Some(a), Some(b)) if (b - a).abs() > SPEED_STEP_NOISES * noise)
-        })
-    };
+    let steps_within = |j: usize| speeds.iter().any(|speed| speed.steps_within(j));
     let time = source.time();
     // The fraction of row `from`'s interval at which `t` lies (outside [0, 1] when `t` lies
     // beyond it): the straight line through that interval, extended.
@@ -438,24 +448,15 @@ fn placed_by_speeds(
         .into_iter()
         .enumerate()
         .map(|(row, (j, fraction))| {
-            if fraction <= 0.0 || fraction >= 1.0 || j + 1 >= time.len() {
+            if !between(fraction) || j + 1 >= time.len() {
                 return (j, fraction);
             }
-            let by_speed = speeds
+            let Some(at) = speeds
                 .iter()
-                .filter_map(|(own, at, noise, range)| {
-                    let (before, after) = (*own.get(j)?, *own.get(j + 1)?);
-                    let step = after - before;
-                    let there = *at.get(row)?;
-                    (step.abs() > SPEED_STEP_NOISES * noise && there.is_finite()).then(|| {
-                        (
-                            step.abs() / range,
-                            ((there - before) / step).clamp(0.0, 1.0),
-                        )
-                    })
-                })
-                .max_by(|a, b| a.0.total_cmp(&b.0));
-            let Some((_, at)) = by_speed else {
+                .filter_map(|speed| speed.place(j, row))
+                .max_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, at)| at)
+            else {
                 return (j, fraction);
             };
             placed += 1;
@@ -473,30 +474,79 @@ fn placed_by_speeds(
     (index, placed)
 }
 
-/// Whether a speed of the interpolated recording (`own`, read at the aligned rows through
-/// `index`) and the other recording's at those rows (`at`) are one program: where `own` holds
-/// steady across the interval (no change beyond `step`), at least [`SPEED_AGREEMENT`] of the
-/// rows read the same within `step` or a hundredth of the speed's range. A speed of the other
-/// sign (another convention), of another scale (motor against spindle) or of another program
-/// cannot say where an instant falls.
-fn speeds_agree(own: &[f64], index: &Index, at: &[f64], step: f64, range: f64) -> bool {
-    let tolerance = step.max(0.01 * range);
-    let (steady, agreeing) = index
-        .iter()
-        .zip(at)
-        .filter_map(|(&(j, _), &there)| {
-            let (before, after) = (*own.get(j)?, *own.get(j + 1).unwrap_or(own.get(j)?));
-            ((after - before).abs() <= step).then(|| (there - before).abs() <= tolerance)
-        })
-        .fold((0usize, 0usize), |(n, k), agrees| {
-            (n + 1, k + usize::from(agrees))
-        });
-    steady > 0 && agreeing as f64 >= SPEED_AGREEMENT * steady as f64
+/// A fraction this close to 0 or 1 is an instant on a sample but for rounding (a grid of
+/// 0.30000000000000004 s against one of 0.3 s): it stays where it is.
+const COINCIDING: f64 = 1e-6;
+
+/// An instant within this many noises of a step's side speed is on that side.
+const SIDE_NOISES: f64 = 3.0;
+
+/// Fewest moving rows on which two recordings' speeds must be compared to guide.
+const MIN_MOVING_ROWS: usize = 30;
+
+/// A speed of the interpolated recording that may place instants ([`placed_by_speeds`]).
+struct GuidingSpeed<'a> {
+    /// Its samples in the interpolated recording.
+    own: &'a [f64],
+    /// The other recording's speed at the aligned rows.
+    at: Vec<f64>,
+    /// The two recordings' speed noise together.
+    noise: f64,
+    /// Its range in the interpolated recording.
+    range: f64,
 }
 
-/// Share of the steady rows on which two recordings' speeds must agree to place instants
-/// ([`speeds_agree`]): a transport delay makes the real speed disagree for its length after
-/// every change, which leaves most rows of a run agreeing.
+impl GuidingSpeed<'_> {
+    /// Whether it changes between samples `j` and `j + 1` beyond what its noise explains.
+    fn steps_within(&self, j: usize) -> bool {
+        matches!((self.own.get(j), self.own.get(j + 1)), (Some(a), Some(b)) if (b - a).abs() > SPEED_STEP_NOISES * self.noise)
+    }
+
+    /// Where aligned row `row` (between samples `j` and `j + 1`) falls in a step there: how
+    /// much it steps for its range, and the fraction; `None` without a step.
+    fn place(&self, j: usize, row: usize) -> Option<(f64, f64)> {
+        let (before, after) = (*self.own.get(j)?, *self.own.get(j + 1)?);
+        let there = *self.at.get(row)?;
+        if !self.steps_within(j) {
+            return None;
+        }
+        let side = SIDE_NOISES * self.noise;
+        let at = if (there - before).abs() <= side {
+            0.0
+        } else if (there - after).abs() <= side {
+            1.0
+        } else {
+            ((there - before) / (after - before)).clamp(0.0, 1.0)
+        };
+        Some(((after - before).abs() / self.range, at))
+    }
+
+    /// Whether the two recordings' speeds are one program: on at least [`SPEED_AGREEMENT`]
+    /// of the aligned rows where this one moves and holds steady across its interval (and at
+    /// least [`MIN_MOVING_ROWS`] of them) they read the same within ten noises or a hundredth
+    /// of the range. Rows at rest say nothing (0 rpm is 0 rpm in any convention); a speed of
+    /// the other sign or scale (another convention, a motor's speed against a spindle's) or
+    /// of another program cannot say where an instant falls.
+    fn agrees(&self, index: &Index) -> bool {
+        let tolerance = (SPEED_STEP_NOISES * self.noise).max(0.01 * self.range);
+        let (moving, agreeing) = index
+            .iter()
+            .zip(&self.at)
+            .filter_map(|(&(j, _), &there)| {
+                let before = *self.own.get(j)?;
+                let steady = !self.steps_within(j);
+                (steady && before.abs() > tolerance).then(|| (there - before).abs() <= tolerance)
+            })
+            .fold((0usize, 0usize), |(n, k), agrees| {
+                (n + 1, k + usize::from(agrees))
+            });
+        moving >= MIN_MOVING_ROWS && agreeing as f64 >= SPEED_AGREEMENT * moving as f64
+    }
+}
+
+/// Share of the steady moving rows on which two recordings' speeds must agree to place
+/// instants ([`GuidingSpeed::agrees`]): a transport delay makes the real speed disagree for
+/// its length after every change, which leaves most rows of a run agreeing.
 const SPEED_AGREEMENT: f64 = 0.9;
 
 /// How [`placed_by_speeds`] reads an instant it places before or after a step.
@@ -506,33 +556,65 @@ enum Sides {
     /// samples, extended, would amplify.
     Held,
     /// On the line through that side's own interval, extended to the instant, where that
-    /// interval has no step of its own: a simulation's values are exact, and what moves
-    /// steadily on each side (a preload's drag along the stroke at the end it reverses) is
-    /// read at the instant instead of a sample away.
+    /// interval has no step of a speed (and, column by column, the column moves steadily
+    /// there: [`interpolate`]): a simulation's values are exact, and what moves steadily on
+    /// each side (a preload's drag along the stroke at the end it reverses) is read at the
+    /// instant instead of a sample away.
     Extended,
 }
 
-/// A signal's white noise (σ) from its sample-to-sample differences, robust to its steps:
-/// 0 for a signal held exactly between changes (a commanded speed, a noise-free simulation).
-fn difference_noise(values: &[f64]) -> f64 {
-    let differences: Vec<f64> = values
+/// A speed's white noise (σ) from its sample-to-sample differences while it moves (both
+/// samples off zero): a drive that reports exactly 0 at rest would otherwise, resting more
+/// than half the time, read as noiseless. All differences where it hardly moves; 0 for a
+/// speed held exactly between changes (a commanded speed, a noise-free simulation).
+fn noise_while_moving(values: &[f64]) -> f64 {
+    let moving: Vec<f64> = values
         .windows(2)
+        .filter(|w| w[0] != 0.0 && w[1] != 0.0)
         .map(|w| w[1] - w[0])
-        .filter(|d| d.is_finite())
         .collect();
-    super::series::robust_sigma(&differences) / std::f64::consts::SQRT_2
+    if moving.len() >= MIN_MOVING_ROWS {
+        white_noise_of_steps(moving)
+    } else {
+        white_noise_of_steps(values.windows(2).map(|w| w[1] - w[0]).collect())
+    }
 }
 
-/// `column` read at `index` by linear interpolation (extended beyond the interval where its
-/// fraction lies outside [0, 1]).
+/// `column` read at `index` by linear interpolation. A fraction outside [0, 1] (an instant
+/// [`placed_by_speeds`] put on one side of a step, read on the line through that side's own
+/// interval) is extended only where the column moves steadily on that side: its change
+/// across that interval is at most twice its change across the next one out. Where it is
+/// more (a load that steps in that interval, with no step of a speed to show it) the side's
+/// sample is read.
 pub fn interpolate(column: &[f64], index: &[(usize, f64)]) -> Vec<f64> {
+    let steady = |change: f64, next_out: Option<f64>| {
+        next_out.is_some_and(|out| change.abs() <= 2.0 * out.abs())
+    };
     index
         .iter()
         .map(|&(j, f)| {
-            if f != 0.0 && j + 1 < column.len() {
-                column[j] + f * (column[j + 1] - column[j])
+            let Some(&next) = column.get(j + 1) else {
+                return column[j];
+            };
+            let change = next - column[j];
+            let value = column[j] + f * change;
+            if f > 1.0 {
+                // The line through the side before the step, whose outer neighbour ends at j.
+                let out = j
+                    .checked_sub(1)
+                    .and_then(|i| column.get(i))
+                    .map(|b| column[j] - b);
+                if steady(change, out) { value } else { next }
+            } else if f < 0.0 {
+                // The line through the side after the step, whose outer neighbour starts at j + 1.
+                let out = column.get(j + 2).map(|after| after - next);
+                if steady(change, out) {
+                    value
+                } else {
+                    column[j]
+                }
             } else {
-                column[j]
+                value
             }
         })
         .collect()
@@ -670,26 +752,11 @@ mod tests {
         // What moves steadily on each side of a reversal (a drag that grows along the stroke)
         // is read at the instant, on the line through that side's own samples.
         let drag = |direction: f64, t: f64| direction * (0.5 + 0.01 * t);
-        let real = reversing_axis((0..200).map(f64::from), 0.0, drag);
+        // The real speed's noise (±2 rpm) does not keep an instant off its side.
+        let real = reversing_axis((0..200).map(f64::from), 2.0, drag);
         let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, drag);
         let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
         assert_eq!(aligned.placed_by_speed, 28);
-        for (got, want) in aligned.sim_target.iter().zip(&aligned.real_target) {
-            assert!((got - want).abs() < 1e-9, "{got} against {want}");
-        }
-
-        // A ramp through the interval is placed as far through it as the speed has got.
-        let ramp = |offset: f64| {
-            let names = ["time_s", "X.speed_rpm"].map(String::from).to_vec();
-            let mut r = Recording::new("ramp", names).expect("a valid header");
-            for k in 0..100 {
-                let t = f64::from(k) + offset;
-                r.push_row(&[t, 10.0 * t]).expect("a valid row");
-            }
-            r
-        };
-        let (real, sim) = (ramp(0.0), ramp(0.25));
-        let aligned = Aligned::new(&sim, &real, "X.speed_rpm").expect("aligned");
         for (got, want) in aligned.sim_target.iter().zip(&aligned.real_target) {
             assert!((got - want).abs() < 1e-9, "{got} against {want}");
         }
@@ -697,9 +764,10 @@ mod tests {
 
     #[test]
     fn a_speed_that_moves_within_its_noise_places_nothing() {
-        // The real speed's noise (±40 rpm) is more than a tenth of the steps (300 → −300):
-        // it cannot say where an instant falls, and the interpolation stays linear.
-        let real = reversing_axis((0..200).map(f64::from), 40.0, plain);
+        // The real speed's noise (±100 rpm, σ ≈ 105 rpm from its differences) puts ten
+        // noises beyond the steps (300 → −300): it cannot say where an instant falls, and the
+        // interpolation stays linear.
+        let real = reversing_axis((0..200).map(f64::from), 100.0, plain);
         let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, plain);
         let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
         assert_eq!(aligned.placed_by_speed, 0);
@@ -729,6 +797,78 @@ mod tests {
             }
             let aligned = Aligned::new(&sim, &other, "X.torque_Nm").expect("aligned");
             assert_eq!(aligned.placed_by_speed, 0, "speed × {factor}");
+        }
+
+        // An axis at rest nine tenths of the time reads 0 rpm in any convention: its rows at
+        // rest say nothing, and the moves, of the other sign, place nothing.
+        let mostly_at_rest = |times: &mut dyn Iterator<Item = f64>, sign: f64| {
+            let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
+                .map(String::from)
+                .to_vec();
+            let mut r = Recording::new("rest", names).expect("a valid header");
+            for t in times {
+                let cycle = t.floor() as i64 % 40;
+                let direction = match cycle {
+                    0..=1 => 1.0,
+                    2..=3 => -1.0,
+                    _ => 0.0,
+                };
+                r.push_row(&[t, sign * 300.0 * direction, 0.5 * direction])
+                    .expect("a valid row");
+            }
+            r
+        };
+        let sim = mostly_at_rest(&mut (0..4000).map(|k| f64::from(k) + 0.5), 1.0);
+        let real = mostly_at_rest(&mut (0..4000).map(f64::from), -1.0);
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        assert_eq!(aligned.placed_by_speed, 0);
+        // The same run in one convention places every move's start, reversal and stop (but
+        // the first start, before the simulation's first sample).
+        let real = mostly_at_rest(&mut (0..4000).map(f64::from), 1.0);
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        assert_eq!(aligned.placed_by_speed, 299);
+    }
+
+    #[test]
+    fn an_instant_on_a_sample_but_for_rounding_stays_there() {
+        // Row k of either recording: the axis reverses every 25 rows.
+        let direction = |k: usize| {
+            if (k / 25).is_multiple_of(2) {
+                1.0
+            } else {
+                -1.0
+            }
+        };
+        let axis = |times: &[f64], speed_row: &dyn Fn(usize) -> usize| {
+            let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
+                .map(String::from)
+                .to_vec();
+            let mut r = Recording::new("axis", names).expect("a valid header");
+            for (k, t) in times.iter().enumerate() {
+                r.push_row(&[*t, 300.0 * direction(speed_row(k)), 0.5 * direction(k)])
+                    .expect("a valid row");
+            }
+            r
+        };
+        // Times summed 0.3 s at a time drift off k · 0.3 by rounding alone.
+        let exact: Vec<f64> = (0..200u32).map(|k| f64::from(k) * 0.3).collect();
+        let summed: Vec<f64> = exact
+            .iter()
+            .scan(0.0, |t, _| {
+                let now = *t;
+                *t += 0.3;
+                Some(now)
+            })
+            .collect();
+        assert_ne!(summed, exact);
+        let sim = axis(&summed, &|k| k);
+        // The real speed reads a sample late: placed, every reversal would be read a sample
+        // early.
+        let real = axis(&exact, &|k| k.saturating_sub(1));
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        assert_eq!(aligned.placed_by_speed, 0);
+        for (got, want) in aligned.sim_target.iter().zip(&aligned.real_target) {
+            assert!((got - want).abs() < 1e-9, "{got} against {want}");
         }
     }
 }

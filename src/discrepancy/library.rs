@@ -780,7 +780,8 @@ impl Context {
         if let Some(real) = aligned.real_rate(target) {
             let fine = Context::on_rows(&real, target);
             let step = fine.step_s.min(context.step_s);
-            let (compared_in_real, _) = index_onto(&fine.time, &context.time, step);
+            let compared_in_real =
+                aligned.real_rows_from(fine.time.first().copied().unwrap_or(0.0));
             let (real_in_compared, _) = index_onto(&context.time, &fine.time, step);
             context.too_coarse =
                 TooCoarse::measure(&real.real_target, &aligned.real_target, &real_in_compared).map(

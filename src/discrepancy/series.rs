@@ -401,6 +401,15 @@ pub fn std_dev(values: &[f64]) -> f64 {
     (values.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / values.len() as f64).sqrt()
 }
 
+/// The lowest and the highest of `values` ((∞, −∞) when there are none).
+pub fn span(values: &[f64]) -> (f64, f64) {
+    values
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(*v), hi.max(*v))
+        })
+}
+
 /// Root mean square.
 pub fn rms(values: &[f64]) -> f64 {
     if values.is_empty() {

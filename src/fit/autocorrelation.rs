@@ -89,7 +89,13 @@ pub fn mean_above_zero(series: &[f64]) -> MeanTest {
 /// noise, drift, heat), and the median ignores the few real steps. 0 for fewer than two
 /// samples, and for a series quantised so coarsely that most samples repeat the one before.
 pub fn white_noise_from_differences(series: &[f64]) -> f64 {
-    let mut differences: Vec<f64> = series.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    white_noise_of_steps(series.windows(2).map(|w| w[1] - w[0]).collect())
+}
+
+/// [`white_noise_from_differences`] of chosen sample-to-sample `differences` (those between
+/// rows a caller trusts, e.g. an axis's while it moves).
+pub fn white_noise_of_steps(differences: Vec<f64>) -> f64 {
+    let mut differences: Vec<f64> = differences.into_iter().map(f64::abs).collect();
     if differences.is_empty() {
         return 0.0;
     }
