@@ -710,8 +710,9 @@ mod tests {
             } else {
                 -1.0
             };
-            // A deterministic ripple standing in for the speed's noise.
-            let ripple = speed_noise * if k % 2 == 0 { 1.0 } else { -1.0 };
+            // A deterministic ripple standing in for the speed's noise, half the reversals
+            // reading inside the step.
+            let ripple = speed_noise * [1.0, -1.0, -0.5, 0.5][k % 4];
             recording
                 .push_row(&[t, 300.0 * direction + ripple, torque(direction, t)])
                 .expect("a valid row");
@@ -764,10 +765,10 @@ mod tests {
 
     #[test]
     fn a_speed_that_moves_within_its_noise_places_nothing() {
-        // The real speed's noise (±100 rpm, σ ≈ 105 rpm from its differences) puts ten
-        // noises beyond the steps (300 → −300): it cannot say where an instant falls, and the
-        // interpolation stays linear.
-        let real = reversing_axis((0..200).map(f64::from), 100.0, plain);
+        // The real speed's noise (up to ±200 rpm, σ over 100 rpm from its differences) puts
+        // ten noises beyond the steps (300 → −300): it cannot say where an instant falls,
+        // and the interpolation stays linear.
+        let real = reversing_axis((0..200).map(f64::from), 200.0, plain);
         let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, plain);
         let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
         assert_eq!(aligned.placed_by_speed, 0);
