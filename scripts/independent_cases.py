@@ -260,15 +260,11 @@ def write(path, signals, every, columns, start=0, time_offsets=None,
         np.savetxt(f, rows, delimiter=",", fmt=fmt)
 
 
-def make_case(out, seed, effect, long_hours=None):
-    """One case; with `long_hours`, a case seeded like `seed` but run that long at 2 Hz in both
-    files, in a directory of its own (a long recording for timing the command, not scored):
-    its program begins as the seed's does, and the machine's other draws differ."""
-    d = os.path.join(out, f"{effect}-{seed}" if long_hours is None
-                     else f"{effect}-{seed}-long{long_hours:g}h")
-    if os.path.exists(os.path.join(d, "sizes.json")):
-        return d
-    os.makedirs(d, exist_ok=True)
+def draw_case(seed, effect, long_hours=None):
+    """A case's draws from `seed` (the machine with everything, without `effect`, and as
+    recorded) and each target's effect size over its noise σ: the signals on the internal
+    grid, the sample steps it drew (every how many grid steps each file is written), its
+    metadata and sizes."""
     rng = np.random.default_rng(seed)
     hours = rng.uniform(4, 8)
     if long_hours is not None:
@@ -287,9 +283,6 @@ def make_case(out, seed, effect, long_hours=None):
     sim = machine(p, left_out(effect), inertia)
     noise_rng = np.random.default_rng(noise_seed(seed, effect))
     real = measured(noise_rng, full, effect, correlated, delay_s, offsets)
-    columns = OPERATING + TARGETS
-    write(os.path.join(d, "real.csv"), real, real_every, columns)
-    write(os.path.join(d, "sim.csv"), sim, sim_every, columns)
     sizes = {}
     for t in TARGETS:
         effect_signal = measured_clean(full, t, effect, delay_s, offsets) - sim[t]
@@ -300,7 +293,25 @@ def make_case(out, seed, effect, long_hours=None):
                 np.sqrt(np.mean(effect_signal ** 2)) / sigma)
     meta = {"hours": hours, "inertia": inertia, "delay_s": delay_s, "correlated": correlated,
             "real_step_s": real_every * DT, "sim_step_s": sim_every * DT}
-    json.dump({"sizes": sizes, "case": meta}, open(os.path.join(d, "sizes.json"), "w"))
+    return {"real": real, "sim": sim, "real_every": real_every, "sim_every": sim_every,
+            "meta": meta, "sizes": sizes}
+
+
+def make_case(out, seed, effect, long_hours=None):
+    """One case; with `long_hours`, a case seeded like `seed` but run that long at 2 Hz in both
+    files, in a directory of its own (a long recording for timing the command, not scored):
+    its program begins as the seed's does, and the machine's other draws differ."""
+    d = os.path.join(out, f"{effect}-{seed}" if long_hours is None
+                     else f"{effect}-{seed}-long{long_hours:g}h")
+    if os.path.exists(os.path.join(d, "sizes.json")):
+        return d
+    os.makedirs(d, exist_ok=True)
+    case = draw_case(seed, effect, long_hours)
+    columns = OPERATING + TARGETS
+    write(os.path.join(d, "real.csv"), case["real"], case["real_every"], columns)
+    write(os.path.join(d, "sim.csv"), case["sim"], case["sim_every"], columns)
+    json.dump({"sizes": case["sizes"], "case": case["meta"]},
+              open(os.path.join(d, "sizes.json"), "w"))
     return d
 
 

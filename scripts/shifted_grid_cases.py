@@ -21,7 +21,6 @@ check scores. docs/discrepancy.md (*Alignment*) gives the figures.
 
 import concurrent.futures
 import json
-import math
 import os
 import sys
 
@@ -38,19 +37,9 @@ def make_case(out, seed, effect, every, jitter):
     if os.path.exists(os.path.join(d, "sizes.json")):
         return d
     os.makedirs(d, exist_ok=True)
-    rng = np.random.default_rng(seed)
-    hours = rng.uniform(4, 8)
-    p = ic.program(rng, hours)
-    inertia = rng.choice([rng.uniform(0.55, 0.75), rng.uniform(1.35, 1.8)])
-    delay_s = rng.uniform(6, 40)
-    offsets = {t: (rng.choice([-1, 1]) * rng.uniform(0.5, 1.5) * ic.SCALE[t],
-                   rng.choice([-1, 1]) * rng.uniform(0.3, 1.0) * ic.SCALE[t])
-               for t in ic.TARGETS}
-    correlated = seed % 2 == 0
-    full = ic.machine(p, set(), inertia)
-    sim = ic.machine(p, ic.left_out(effect), inertia)
-    noise_rng = np.random.default_rng(ic.noise_seed(seed, effect))
-    real = ic.measured(noise_rng, full, effect, correlated, delay_s, offsets)
+    # The independent check's own draws; its choice of sample steps is not used.
+    case = ic.draw_case(seed, effect)
+    real, sim = case["real"], case["sim"]
     columns = ic.OPERATING + ic.TARGETS
     here = "scripts/shifted_grid_cases.py"
     if jitter:
@@ -63,15 +52,7 @@ def make_case(out, seed, effect, every, jitter):
         ic.write(os.path.join(d, "real.csv"), real, every, columns, source=here)
         ic.write(os.path.join(d, "sim.csv"), sim, every, columns, start=every // 2,
                  source=here)
-    sizes = {}
-    for t in ic.TARGETS:
-        effect_signal = ic.measured_clean(full, t, effect, delay_s, offsets) - sim[t]
-        white, corr = ic.NOISE[t]
-        sigma = math.hypot(white, corr) if correlated else white
-        centred = effect_signal if "sensor_offset_drift" in ic.left_out(effect) \
-            else effect_signal - effect_signal.mean()
-        sizes[t] = float(np.sqrt(np.mean(centred ** 2)) / sigma)
-    json.dump({"sizes": sizes}, open(os.path.join(d, "sizes.json"), "w"))
+    json.dump({"sizes": case["sizes"]}, open(os.path.join(d, "sizes.json"), "w"))
     return d
 
 

@@ -693,6 +693,18 @@ mod tests {
         assert_eq!(spread_on(&supply, &supply, bearing), None);
     }
 
+    /// A feed axis's recording of `rows`: time (s), `X.speed_rpm`, `X.torque_Nm`.
+    fn axis_recording(rows: impl IntoIterator<Item = [f64; 3]>) -> Recording {
+        let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
+            .map(String::from)
+            .to_vec();
+        let mut recording = Recording::new("axis", names).expect("a valid header");
+        for row in rows {
+            recording.push_row(&row).expect("a valid row");
+        }
+        recording
+    }
+
     /// A feed axis reversing every 7 s, as a zero-order hold would record it at `times`: its
     /// speed ±300 rpm and its torque `torque(direction, t)`, which steps with the direction.
     fn reversing_axis(
@@ -700,11 +712,7 @@ mod tests {
         speed_noise: f64,
         torque: impl Fn(f64, f64) -> f64,
     ) -> Recording {
-        let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
-            .map(String::from)
-            .to_vec();
-        let mut recording = Recording::new("axis", names).expect("a valid header");
-        for (k, t) in times.enumerate() {
+        axis_recording(times.enumerate().map(|(k, t)| {
             let direction = if (t.floor() as i64 / 7) % 2 == 0 {
                 1.0
             } else {
@@ -713,11 +721,8 @@ mod tests {
             // A deterministic ripple standing in for the speed's noise, half the reversals
             // reading inside the step.
             let ripple = speed_noise * [1.0, -1.0, -0.5, 0.5][k % 4];
-            recording
-                .push_row(&[t, 300.0 * direction + ripple, torque(direction, t)])
-                .expect("a valid row");
-        }
-        recording
+            [t, 300.0 * direction + ripple, torque(direction, t)]
+        }))
     }
 
     /// ±0.5 N·m, the same at every point of the stroke.
@@ -782,20 +787,14 @@ mod tests {
         for factor in [-1.0, 3.0] {
             // The same run, its speed written in another convention (the other sign, or the
             // spindle's speed behind a 1 : 3 gear).
-            let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
-                .map(String::from)
-                .to_vec();
-            let mut other = Recording::new("other", names).expect("a valid header");
-            for row in 0..real.len() {
+            let other = axis_recording((0..real.len()).map(|row| {
                 let value = |name: &str| real.try_column(name).expect("a column")[row];
-                other
-                    .push_row(&[
-                        value("time_s"),
-                        factor * value("X.speed_rpm"),
-                        value("X.torque_Nm"),
-                    ])
-                    .expect("a valid row");
-            }
+                [
+                    value("time_s"),
+                    factor * value("X.speed_rpm"),
+                    value("X.torque_Nm"),
+                ]
+            }));
             let aligned = Aligned::new(&sim, &other, "X.torque_Nm").expect("aligned");
             assert_eq!(aligned.placed_by_speed, 0, "speed × {factor}");
         }
@@ -803,21 +802,14 @@ mod tests {
         // An axis at rest nine tenths of the time reads 0 rpm in any convention: its rows at
         // rest say nothing, and the moves, of the other sign, place nothing.
         let mostly_at_rest = |times: &mut dyn Iterator<Item = f64>, sign: f64| {
-            let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
-                .map(String::from)
-                .to_vec();
-            let mut r = Recording::new("rest", names).expect("a valid header");
-            for t in times {
-                let cycle = t.floor() as i64 % 40;
-                let direction = match cycle {
+            axis_recording(times.map(|t| {
+                let direction = match t.floor() as i64 % 40 {
                     0..=1 => 1.0,
                     2..=3 => -1.0,
                     _ => 0.0,
                 };
-                r.push_row(&[t, sign * 300.0 * direction, 0.5 * direction])
-                    .expect("a valid row");
-            }
-            r
+                [t, sign * 300.0 * direction, 0.5 * direction]
+            }))
         };
         let sim = mostly_at_rest(&mut (0..4000).map(|k| f64::from(k) + 0.5), 1.0);
         let real = mostly_at_rest(&mut (0..4000).map(f64::from), -1.0);
@@ -841,15 +833,12 @@ mod tests {
             }
         };
         let axis = |times: &[f64], speed_row: &dyn Fn(usize) -> usize| {
-            let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
-                .map(String::from)
-                .to_vec();
-            let mut r = Recording::new("axis", names).expect("a valid header");
-            for (k, t) in times.iter().enumerate() {
-                r.push_row(&[*t, 300.0 * direction(speed_row(k)), 0.5 * direction(k)])
-                    .expect("a valid row");
-            }
-            r
+            axis_recording(
+                times
+                    .iter()
+                    .enumerate()
+                    .map(|(k, t)| [*t, 300.0 * direction(speed_row(k)), 0.5 * direction(k)]),
+            )
         };
         // Times summed 0.3 s at a time drift off k · 0.3 by rounding alone.
         let exact: Vec<f64> = (0..200u32).map(|k| f64::from(k) * 0.3).collect();
