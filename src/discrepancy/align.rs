@@ -272,6 +272,54 @@ impl<'a> Aligned<'a> {
         (temperatures.len() >= 2).then_some(hi - lo)
     }
 
+    /// The simulation's own samples of `target`, for what reads the simulated target at
+    /// instants other than the rows (a delay), when the simulation was interpolated onto the
+    /// real grid at one offset: nearly every row ([`ONE_OFFSET_SHARE`]) lies the same share of
+    /// the simulation's step after its sample before. An instant a delay moves onto one of
+    /// those samples then reads the sample, which the rows' values, interpolated once
+    /// already, would interpolate a second time: between two rows placed on either side of
+    /// a torque's step, halfway. `None` on one grid, on the simulation's grid and without
+    /// one offset (a jittered trace, a coarser export).
+    pub fn simulated_samples(&self, target: &str) -> Option<SimulatedSamples> {
+        if self.on_simulation_grid || !self.resampled {
+            return None;
+        }
+        let time = self.sim.time();
+        let step_s = self.sim.median_step_s()?;
+        let shares: Vec<f64> = self
+            .time
+            .iter()
+            .filter_map(|&t| {
+                let j = time.partition_point(|&s| s <= t).checked_sub(1)?;
+                let span = time.get(j + 1)? - time[j];
+                (span > 0.0).then(|| (t - time[j]) / span)
+            })
+            .collect();
+        if shares.len() < MIN_ROWS {
+            return None;
+        }
+        let offset_share = series::median(&shares);
+        let at_offset = shares
+            .iter()
+            .filter(|s| (*s - offset_share).abs() <= ONE_OFFSET_TOLERANCE)
+            .count();
+        let between =
+            offset_share > ONE_OFFSET_TOLERANCE && offset_share < 1.0 - ONE_OFFSET_TOLERANCE;
+        (between && at_offset as f64 >= ONE_OFFSET_SHARE * shares.len() as f64).then(|| {
+            SimulatedSamples {
+                time: time.to_vec(),
+                values: self
+                    .sim
+                    .try_column(target)
+                    .map(<[f64]>::to_vec)
+                    .unwrap_or_default(),
+                on_rows: self.sim_column(target).unwrap_or_default(),
+                offset_s: offset_share * step_s,
+                step_s,
+            }
+        })
+    }
+
     /// What the interpolation did where a speed steps between two samples, after `whose`
     /// speeds placed the instant; empty when it never did.
     fn placed_note(&self, whose: &str) -> String {
@@ -472,6 +520,66 @@ fn placed_by_speeds(
         })
         .collect();
     (index, placed)
+}
+
+/// Share of the rows that must lie at one offset from the simulation's samples for
+/// [`Aligned::simulated_samples`]: a real recording's grid, not a jittered one.
+const ONE_OFFSET_SHARE: f64 = 0.9;
+
+/// How far (a share of the simulation's step) a row's offset may be from the others' to
+/// count as the same: time stamps written to a tenth of a millisecond on a 1 s grid.
+const ONE_OFFSET_TOLERANCE: f64 = 1e-3;
+
+/// The simulation's own samples of a target, for reading it at instants off the aligned rows
+/// ([`Aligned::simulated_samples`]).
+#[derive(Debug, Clone)]
+pub struct SimulatedSamples {
+    time: Vec<f64>,
+    values: Vec<f64>,
+    /// The samples as read on the aligned rows, before a censored instrument's reading
+    /// ([`Censoring::simulation_as_read`]) is applied.
+    pub on_rows: Vec<f64>,
+    /// How far each aligned row lies after the simulation's sample before it, s.
+    pub offset_s: f64,
+    /// The simulation's step, s.
+    pub step_s: f64,
+}
+
+impl SimulatedSamples {
+    /// Whether a delay of `delay_s` moves the rows onto the samples: it is the offset and a
+    /// whole number of steps.
+    pub fn lands_on_samples(&self, delay_s: f64) -> bool {
+        let steps = (delay_s - self.offset_s) / self.step_s;
+        (steps - steps.round()).abs() <= ONE_OFFSET_TOLERANCE
+    }
+
+    /// The simulated target at each of `instants` (increasing) that is one of its samples
+    /// (within [`COINCIDING`] of its step, as rounding leaves it); `None` between them.
+    pub fn at_each(&self, instants: impl Iterator<Item = f64>) -> Vec<Option<f64>> {
+        let tolerance = COINCIDING * self.step_s;
+        let mut after = 0usize;
+        instants
+            .map(|instant| {
+                while self.time.get(after).is_some_and(|&s| s < instant) {
+                    after += 1;
+                }
+                [after.checked_sub(1), Some(after)]
+                    .into_iter()
+                    .flatten()
+                    .find(|&j| {
+                        self.time
+                            .get(j)
+                            .is_some_and(|s| (s - instant).abs() <= tolerance)
+                    })
+                    .and_then(|j| self.values.get(j).copied())
+            })
+            .collect()
+    }
+
+    /// The simulated target at `instant` when it is one of its samples ([`Self::at_each`]).
+    pub fn at(&self, instant: f64) -> Option<f64> {
+        self.at_each(std::iter::once(instant)).pop().flatten()
+    }
 }
 
 /// A fraction this close to 0 or 1 is an instant on a sample but for rounding (a grid of
@@ -766,6 +874,40 @@ mod tests {
         for (got, want) in aligned.sim_target.iter().zip(&aligned.real_target) {
             assert!((got - want).abs() < 1e-9, "{got} against {want}");
         }
+    }
+
+    #[test]
+    fn a_simulation_at_one_offset_from_the_real_grid_keeps_its_own_samples() {
+        let real = reversing_axis((0..200).map(f64::from), 2.0, plain);
+        let sim = reversing_axis((0..200).map(|k| f64::from(k) + 0.5), 0.0, plain);
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        let samples = aligned
+            .simulated_samples("X.torque_Nm")
+            .expect("every row half a step after a sample");
+        assert!((samples.offset_s - 0.5).abs() < 1e-9);
+        assert_eq!(samples.step_s, 1.0);
+        // 7.5 s is a sample (the reverse stroke's first), 7.3 s is not.
+        assert_eq!(samples.at(7.5), Some(-0.5));
+        assert_eq!(samples.at(7.5 + 1e-9), Some(-0.5));
+        assert_eq!(samples.at(7.3), None);
+        assert_eq!(samples.at(6.5), Some(0.5));
+
+        // On one grid there is nothing between the samples to read.
+        let aligned = Aligned::new(&real, &real, "X.torque_Nm").expect("aligned");
+        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
+        // Nor under a trace whose samples were taken at no one offset (jittered by up to
+        // ±0.1 s), nor where the simulation's grid is the compared one.
+        let jittered = reversing_axis(
+            (0..200).map(|k| f64::from(k) + 0.1 * [0.3, -0.7, 0.9, -0.2, 0.5][k as usize % 5]),
+            2.0,
+            plain,
+        );
+        let aligned = Aligned::new(&sim, &jittered, "X.torque_Nm").expect("aligned");
+        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
+        let coarse = reversing_axis((0..100).map(|k| 2.0 * f64::from(k) + 0.5), 0.0, plain);
+        let aligned = Aligned::new(&coarse, &real, "X.torque_Nm").expect("aligned");
+        assert!(aligned.on_simulation_grid);
+        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
     }
 
     #[test]

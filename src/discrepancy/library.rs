@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::{Arc, OnceLock};
 
-use super::align::{Index, index_onto, interpolate};
+use super::align::{Index, SimulatedSamples, index_onto, interpolate};
 use super::kept::Kept;
 use super::series::{
     self, legendre, lowpass_on_grid, lowpass_switched, mean, quantile, robust_sigma, shifted,
@@ -344,6 +344,11 @@ pub struct Context {
     /// The real coolant's own lags, kept once built; shared by the context's copies with
     /// another state, whose coolant is the same.
     coolant_lags: Arc<CoolantLags>,
+    /// The simulation's own samples of the target when the rows lie at one offset between
+    /// them ([`super::align::Aligned::simulated_samples`]): a delay that lands on them reads
+    /// them ([`Context::delayed_simulation`]). `None` in a corrected state, whose simulated
+    /// target is no longer the samples'.
+    simulated_samples: Option<Arc<SimulatedSamples>>,
 }
 
 /// How far apart the simulated temperatures may be at the first row, K, for the machine to
@@ -894,6 +899,7 @@ impl Context {
             too_coarse: None,
             start_spread_k: aligned.simulated_start_spread_k(target),
             coolant_lags: Arc::default(),
+            simulated_samples: aligned.simulated_samples(target).map(Arc::new),
         }
     }
 
@@ -919,6 +925,7 @@ impl Context {
     /// recording's own rows the correction is interpolated between the compared ones.
     pub fn with_state(&self, correction: &[f64]) -> Context {
         let mut out = self.clone();
+        out.simulated_samples = None;
         for ((s, e), c) in out.sim.iter_mut().zip(&mut out.excess).zip(correction) {
             *s += c;
             *e += c;
@@ -975,7 +982,10 @@ impl Context {
 
     /// Delays worth trying, both signs: every sample up to sixty (a delay that misses by a
     /// sample smears a fast signal badly), then growing by a tenth (rounded to whole samples)
-    /// up to a tenth of the recording, at most ten minutes.
+    /// up to a tenth of the recording, at most ten minutes. Where the rows lie at one offset
+    /// between the simulation's own samples, also every delay within the first sixty samples
+    /// that lands on those ([`Context::delayed_simulation`]): a search between grid values
+    /// would not find an instant where one reading is exact and its neighbours are not.
     fn delay_grid(&self) -> Vec<f64> {
         let high = (0.1 * self.duration_s).min(600.0);
         let mut grid = Vec::new();
@@ -989,7 +999,41 @@ impl Context {
                 (samples * 1.1).round()
             };
         }
+        if let Some(own) = &self.simulated_samples {
+            let fine = high.min(60.0 * self.step_s);
+            let reach = (fine / own.step_s).ceil() as i64;
+            grid.extend(
+                (-reach..=reach)
+                    .map(|m| own.offset_s + m as f64 * own.step_s)
+                    .filter(|d| *d != 0.0 && d.abs() <= fine),
+            );
+        }
         grid
+    }
+
+    /// The simulated target `delay_s` later (positive: the measurement trails): read at
+    /// each row's instant less the delay, on the line between the rows there, or, where that
+    /// instant is one of the simulation's own samples, the sample itself. Compared as a
+    /// censored instrument would read it, the sample replaces the rows' raw values the same
+    /// way and the reading's lift moves with the delay (the lift is nearly nothing once the
+    /// simulation is a few noises above the floor, and near it the sample is nearly the
+    /// rows').
+    fn delayed_simulation(&self, delay_s: f64) -> Vec<f64> {
+        let mut moved = shifted(&self.time, &self.sim, delay_s);
+        if let Some(own) = self
+            .simulated_samples
+            .as_deref()
+            .filter(|own| own.lands_on_samples(delay_s))
+        {
+            let between_rows = shifted(&self.time, &own.on_rows, delay_s);
+            let samples = own.at_each(self.time.iter().map(|t| t - delay_s));
+            for ((value, sample), raw) in moved.iter_mut().zip(samples).zip(between_rows) {
+                if let Some(sample) = sample {
+                    *value += sample - raw;
+                }
+            }
+        }
+        moved
     }
 }
 
@@ -2333,7 +2377,7 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         grid: ctx.delay_grid().into_iter().map(|d| vec![d]).collect(),
         refine: Some(Refine { log: false }),
         build: Box::new(|ctx, theta| {
-            let moved = shifted(&ctx.time, &ctx.sim, theta[0]);
+            let moved = ctx.delayed_simulation(theta[0]);
             vec![moved.iter().zip(&ctx.sim).map(|(m, s)| m - s).collect()]
         }),
         // Only a share near a whole shift is the measured signal moved by d; a shift fitted at
@@ -3775,6 +3819,75 @@ mod tests {
         assert_eq!(share(&warming), None);
         let only_noise: Vec<f64> = (0..6000).map(noise).collect();
         assert_eq!(share(&only_noise), None);
+    }
+
+    /// A feed axis reversing every 7 s at `times`, its torque ±(0.5 + 0.01 t) N·m (a drag
+    /// that grows along the stroke) as measured `delay_s` late.
+    fn delayed_axis(times: impl Iterator<Item = f64>, delay_s: f64) -> crate::signal::Recording {
+        let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
+            .map(String::from)
+            .to_vec();
+        let mut recording = crate::signal::Recording::new("axis", names).expect("a valid header");
+        let direction = |t: f64| {
+            if (t.floor() as i64).div_euclid(7) % 2 == 0 {
+                1.0
+            } else {
+                -1.0
+            }
+        };
+        for t in times {
+            let was = t - delay_s;
+            let row = [t, 300.0 * direction(t), direction(was) * (0.5 + 0.01 * was)];
+            recording.push_row(&row).expect("a valid row");
+        }
+        recording
+    }
+
+    #[test]
+    fn a_delay_that_lands_on_the_simulations_own_samples_reads_them() {
+        // Exported half a second off the real 1 s grid, the simulation has a sample 3.5 s
+        // before every real row: the torque measured 3.5 s late is that sample.
+        let sim = delayed_axis((0..300).map(|k| f64::from(k) + 0.5), 0.0);
+        let real = delayed_axis((0..300).map(f64::from), 3.5);
+        let aligned =
+            super::super::align::Aligned::new(&sim, &real, "X.torque_Nm").expect("the pair aligns");
+        let ctx = Context::new(&aligned, "X.torque_Nm");
+        let delay = offered_family(&ctx, Physics::SignalDelay, "a delay is offered");
+        assert!(
+            delay.grid.iter().any(|d| (d[0] - 3.5).abs() < 1e-9),
+            "3.5 s is tried"
+        );
+        let column = (delay.build)(&ctx, &[3.5]).remove(0);
+        let rows_after_the_delay = ctx.time.iter().position(|t| *t >= 4.0).expect("rows");
+        let rows = ctx.sim.iter().zip(&column).zip(&aligned.real_target);
+        for (row, ((sim, moved_by), measured)) in rows.enumerate().skip(rows_after_the_delay) {
+            let delayed = sim + moved_by;
+            assert!(
+                (delayed - measured).abs() < 1e-9,
+                "row {row}: {delayed} against {measured}"
+            );
+        }
+        // Read between the rows, each already interpolated, it would be off by half the
+        // step at every reversal.
+        let twice = shifted(&ctx.time, &ctx.sim, 3.5);
+        let worst = twice
+            .iter()
+            .zip(&aligned.real_target)
+            .skip(rows_after_the_delay)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst > 0.4,
+            "read between the rows: {worst} N·m off at worst"
+        );
+
+        // On one grid there is nothing between samples to read, and the delays stay whole.
+        let sim = delayed_axis((0..300).map(f64::from), 0.0);
+        let aligned =
+            super::super::align::Aligned::new(&sim, &real, "X.torque_Nm").expect("the pair aligns");
+        let ctx = Context::new(&aligned, "X.torque_Nm");
+        let delay = offered_family(&ctx, Physics::SignalDelay, "a delay is offered");
+        assert!(delay.grid.iter().all(|d| d[0].fract() == 0.0));
     }
 
     #[test]
