@@ -313,7 +313,7 @@ impl<'a> Aligned<'a> {
                     .try_column(target)
                     .map(<[f64]>::to_vec)
                     .unwrap_or_default(),
-                on_rows: self.sim_column(target).unwrap_or_default(),
+                on_rows: self.censoring.and_then(|_| self.sim_column(target)),
                 offset_s: offset_share * step_s,
                 step_s,
             }
@@ -536,9 +536,10 @@ const ONE_OFFSET_TOLERANCE: f64 = 1e-3;
 pub struct SimulatedSamples {
     time: Vec<f64>,
     values: Vec<f64>,
-    /// The samples as read on the aligned rows, before a censored instrument's reading
-    /// ([`Censoring::simulation_as_read`]) is applied.
-    pub on_rows: Vec<f64>,
+    /// Where the simulation is compared as a censored instrument reads it
+    /// ([`Censoring::simulation_as_read`]): its values on the aligned rows before that
+    /// reading. `None` where the compared values are these.
+    pub on_rows: Option<Vec<f64>>,
     /// How far each aligned row lies after the simulation's sample before it, s.
     pub offset_s: f64,
     /// The simulation's step, s.

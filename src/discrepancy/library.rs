@@ -1020,16 +1020,28 @@ impl Context {
     /// rows').
     fn delayed_simulation(&self, delay_s: f64) -> Vec<f64> {
         let mut moved = shifted(&self.time, &self.sim, delay_s);
-        if let Some(own) = self
+        let Some(own) = self
             .simulated_samples
             .as_deref()
             .filter(|own| own.lands_on_samples(delay_s))
-        {
-            let between_rows = shifted(&self.time, &own.on_rows, delay_s);
-            let samples = own.at_each(self.time.iter().map(|t| t - delay_s));
-            for ((value, sample), raw) in moved.iter_mut().zip(samples).zip(between_rows) {
-                if let Some(sample) = sample {
-                    *value += sample - raw;
+        else {
+            return moved;
+        };
+        let samples = own.at_each(self.time.iter().map(|t| t - delay_s));
+        match &own.on_rows {
+            Some(on_rows) => {
+                let raw = shifted(&self.time, on_rows, delay_s);
+                for ((value, sample), raw) in moved.iter_mut().zip(samples).zip(raw) {
+                    if let Some(sample) = sample {
+                        *value += sample - raw;
+                    }
+                }
+            }
+            None => {
+                for (value, sample) in moved.iter_mut().zip(samples) {
+                    if let Some(sample) = sample {
+                        *value = sample;
+                    }
                 }
             }
         }
