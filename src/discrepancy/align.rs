@@ -286,15 +286,14 @@ impl<'a> Aligned<'a> {
         }
         let time = self.sim.time();
         let step_s = self.sim.median_step_s()?;
-        let shares: Vec<f64> = self
-            .time
-            .iter()
-            .filter_map(|&t| {
-                let j = time.partition_point(|&s| s <= t).checked_sub(1)?;
-                let span = time.get(j + 1)? - time[j];
-                (span > 0.0).then(|| (t - time[j]) / span)
-            })
-            .collect();
+        // A finer simulation has a sample near every instant: read between two, it loses
+        // little, and the delays landing on its samples would be many.
+        let real_step_s = self.real.median_step_s()?;
+        if step_s < real_step_s * (1.0 - ONE_OFFSET_TOLERANCE) {
+            return None;
+        }
+        let (index, _) = index_onto(time, &self.time, step_s);
+        let shares: Vec<f64> = index.iter().map(|&(_, fraction)| fraction).collect();
         if shares.len() < MIN_ROWS {
             return None;
         }
@@ -303,8 +302,7 @@ impl<'a> Aligned<'a> {
             .iter()
             .filter(|s| (*s - offset_share).abs() <= ONE_OFFSET_TOLERANCE)
             .count();
-        let between =
-            offset_share > ONE_OFFSET_TOLERANCE && offset_share < 1.0 - ONE_OFFSET_TOLERANCE;
+        let between = (CLEARLY_BETWEEN..=1.0 - CLEARLY_BETWEEN).contains(&offset_share);
         (between && at_offset as f64 >= ONE_OFFSET_SHARE * shares.len() as f64).then(|| {
             SimulatedSamples {
                 time: time.to_vec(),
@@ -527,8 +525,14 @@ fn placed_by_speeds(
 const ONE_OFFSET_SHARE: f64 = 0.9;
 
 /// How far (a share of the simulation's step) a row's offset may be from the others' to
-/// count as the same: time stamps written to a tenth of a millisecond on a 1 s grid.
+/// count as the same, and an instant from a sample to read it: time stamps written to a
+/// tenth of a millisecond on a 1 s grid.
 const ONE_OFFSET_TOLERANCE: f64 = 1e-3;
+
+/// How far (a share of the simulation's step) the one offset must be from a sample for
+/// [`Aligned::simulated_samples`]: a hundredth of a step off, the rows' line loses nearly
+/// nothing and the landing delays would nearly repeat the whole ones.
+const CLEARLY_BETWEEN: f64 = 0.05;
 
 /// The simulation's own samples of a target, for reading it at instants off the aligned rows
 /// ([`Aligned::simulated_samples`]).
@@ -555,9 +559,10 @@ impl SimulatedSamples {
     }
 
     /// The simulated target at each of `instants` (increasing) that is one of its samples
-    /// (within [`COINCIDING`] of its step, as rounding leaves it); `None` between them.
+    /// (within [`ONE_OFFSET_TOLERANCE`] of its step, the tolerance the offset was found
+    /// with); `None` between them.
     pub fn at_each(&self, instants: impl Iterator<Item = f64>) -> Vec<Option<f64>> {
-        let tolerance = COINCIDING * self.step_s;
+        let tolerance = ONE_OFFSET_TOLERANCE * self.step_s;
         let mut after = 0usize;
         instants
             .map(|instant| {
@@ -578,7 +583,8 @@ impl SimulatedSamples {
     }
 
     /// The simulated target at `instant` when it is one of its samples ([`Self::at_each`]).
-    pub fn at(&self, instant: f64) -> Option<f64> {
+    #[cfg(test)]
+    fn at(&self, instant: f64) -> Option<f64> {
         self.at_each(std::iter::once(instant)).pop().flatten()
     }
 }
@@ -904,6 +910,15 @@ mod tests {
             plain,
         );
         let aligned = Aligned::new(&sim, &jittered, "X.torque_Nm").expect("aligned");
+        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
+        // Nor from a finer simulation (every half second, a quarter off), which has a sample
+        // near every instant, nor from one a hundredth of a step off.
+        let finer = reversing_axis((0..400).map(|k| 0.5 * f64::from(k) + 0.25), 0.0, plain);
+        let aligned = Aligned::new(&finer, &real, "X.torque_Nm").expect("aligned");
+        assert!(aligned.resampled);
+        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
+        let nearly = reversing_axis((0..200).map(|k| f64::from(k) + 0.01), 0.0, plain);
+        let aligned = Aligned::new(&nearly, &real, "X.torque_Nm").expect("aligned");
         assert!(aligned.simulated_samples("X.torque_Nm").is_none());
         let coarse = reversing_axis((0..100).map(|k| 2.0 * f64::from(k) + 0.5), 0.0, plain);
         let aligned = Aligned::new(&coarse, &real, "X.torque_Nm").expect("aligned");

@@ -782,6 +782,16 @@ impl Context {
     /// Collects the signals for `target` from the aligned recordings.
     pub fn new(aligned: &super::align::Aligned<'_>, target: &str) -> Context {
         let mut context = Context::on_rows(aligned, target);
+        // Only the compared rows build delays. A temperature or a displacement moves smoothly
+        // between samples: read between two rows it loses nothing measurable (the
+        // independent check's nut, half a sample off: 0.04575 → 0.04573 °C held out), and
+        // the landing delays would cost a tenth of its analysis (docs/performance.md).
+        context.simulated_samples = context
+            .class
+            .effort()
+            .then(|| aligned.simulated_samples(target))
+            .flatten()
+            .map(Arc::new);
         if let Some(real) = aligned.real_rate(target) {
             let fine = Context::on_rows(&real, target);
             let step = fine.step_s.min(context.step_s);
@@ -899,14 +909,7 @@ impl Context {
             too_coarse: None,
             start_spread_k: aligned.simulated_start_spread_k(target),
             coolant_lags: Arc::default(),
-            // A temperature or a displacement moves smoothly between samples: read between two
-            // rows it loses nothing measurable (the independent check's nut, half a sample
-            // off: 0.04575 → 0.04573 °C held out), and the landing delays would cost a tenth
-            // of its analysis (docs/performance.md).
-            simulated_samples: matches!(class, TargetClass::Effort { .. } | TargetClass::Other)
-                .then(|| aligned.simulated_samples(target))
-                .flatten()
-                .map(Arc::new),
+            simulated_samples: None,
         }
     }
 
@@ -932,6 +935,9 @@ impl Context {
     /// recording's own rows the correction is interpolated between the compared ones.
     pub fn with_state(&self, correction: &[f64]) -> Context {
         let mut out = self.clone();
+        // The corrected target is no longer the samples'. The delay family is built on the
+        // uncorrected context only (it is not `state`); were it ever rebuilt on a corrected
+        // one, it would read the rows there.
         out.simulated_samples = None;
         for ((s, e), c) in out.sim.iter_mut().zip(&mut out.excess).zip(correction) {
             *s += c;
@@ -1007,12 +1013,14 @@ impl Context {
             };
         }
         if let Some(own) = &self.simulated_samples {
+            // The simulation's step is at least the rows' (Aligned::simulated_samples), so
+            // this is at most sixty of its samples each way.
             let fine = high.min(60.0 * self.step_s);
-            let reach = (fine / own.step_s).ceil() as i64;
+            let reach = (fine / own.step_s).ceil().min(60.0) as i64;
             grid.extend(
                 (-reach..=reach)
                     .map(|m| own.offset_s + m as f64 * own.step_s)
-                    .filter(|d| *d != 0.0 && d.abs() <= fine),
+                    .filter(|d| d.abs() <= fine),
             );
         }
         grid
@@ -1020,7 +1028,9 @@ impl Context {
 
     /// The simulated target `delay_s` later (positive: the measurement trails): read at
     /// each row's instant less the delay, on the line between the rows there, or, where that
-    /// instant is one of the simulation's own samples, the sample itself. Compared as a
+    /// instant is one of the simulation's own samples, the sample itself — also before the
+    /// first row, where a simulation that started before the trace holds one (the rows'
+    /// line holds the first row's value there). Compared as a
     /// censored instrument would read it, the sample replaces the rows' raw values the same
     /// way and the reading's lift moves with the delay (the lift is nearly nothing once the
     /// simulation is a few noises above the floor, and near it the sample is nearly the
@@ -3905,6 +3915,7 @@ mod tests {
         let aligned =
             super::super::align::Aligned::new(&sim, &real, "X.torque_Nm").expect("the pair aligns");
         let ctx = Context::new(&aligned, "X.torque_Nm");
+        assert!(ctx.simulated_samples.is_none());
         let delay = offered_family(&ctx, Physics::SignalDelay, "a delay is offered");
         assert!(delay.grid.iter().all(|d| d[0].fract() == 0.0));
     }
