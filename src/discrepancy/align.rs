@@ -899,11 +899,15 @@ mod tests {
         assert_eq!(samples.at(7.3), None);
         assert_eq!(samples.at(6.5), Some(0.5));
 
+        let none_kept = |sim: &Recording| {
+            let aligned = Aligned::new(sim, &real, "X.torque_Nm").expect("aligned");
+            aligned.resampled && aligned.simulated_samples("X.torque_Nm").is_none()
+        };
         // On one grid there is nothing between the samples to read.
         let aligned = Aligned::new(&real, &real, "X.torque_Nm").expect("aligned");
         assert!(aligned.simulated_samples("X.torque_Nm").is_none());
         // Nor under a trace whose samples were taken at no one offset (jittered by up to
-        // ±0.1 s), nor where the simulation's grid is the compared one.
+        // ±0.1 s).
         let jittered = reversing_axis(
             (0..200).map(|k| f64::from(k) + 0.1 * [0.3, -0.7, 0.9, -0.2, 0.5][k as usize % 5]),
             2.0,
@@ -912,18 +916,15 @@ mod tests {
         let aligned = Aligned::new(&sim, &jittered, "X.torque_Nm").expect("aligned");
         assert!(aligned.simulated_samples("X.torque_Nm").is_none());
         // Nor from a finer simulation (every half second, a quarter off), which has a sample
-        // near every instant, nor from one a hundredth of a step off.
+        // near every instant, nor from one a hundredth of a step off, nor where the
+        // simulation's coarser grid is the compared one.
         let finer = reversing_axis((0..400).map(|k| 0.5 * f64::from(k) + 0.25), 0.0, plain);
-        let aligned = Aligned::new(&finer, &real, "X.torque_Nm").expect("aligned");
-        assert!(aligned.resampled);
-        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
+        assert!(none_kept(&finer));
         let nearly = reversing_axis((0..200).map(|k| f64::from(k) + 0.01), 0.0, plain);
-        let aligned = Aligned::new(&nearly, &real, "X.torque_Nm").expect("aligned");
-        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
+        assert!(none_kept(&nearly));
         let coarse = reversing_axis((0..100).map(|k| 2.0 * f64::from(k) + 0.5), 0.0, plain);
-        let aligned = Aligned::new(&coarse, &real, "X.torque_Nm").expect("aligned");
-        assert!(aligned.on_simulation_grid);
-        assert!(aligned.simulated_samples("X.torque_Nm").is_none());
+        assert!(Aligned::new(&coarse, &real, "X.torque_Nm").is_ok_and(|a| a.on_simulation_grid));
+        assert!(none_kept(&coarse));
     }
 
     #[test]
