@@ -743,7 +743,7 @@ fn describe_span(recording: &Recording) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A recording of `columns`, 100 rows a second apart, each column's value `value(name, t)`.
@@ -820,19 +820,26 @@ mod tests {
         recording
     }
 
-    /// A feed axis reversing every 7 s, as a zero-order hold would record it at `times`: its
-    /// speed ±300 rpm and its torque `torque(direction, t)`, which steps with the direction.
-    fn reversing_axis(
+    /// The direction (±1) at `t` of a feed axis that reverses every 7 s from 0 s on (and
+    /// before it).
+    pub(crate) fn direction_at(t: f64) -> f64 {
+        if (t.floor() as i64).div_euclid(7) % 2 == 0 {
+            1.0
+        } else {
+            -1.0
+        }
+    }
+
+    /// A feed axis reversing every 7 s ([`direction_at`]), as a zero-order hold would record
+    /// it at `times`: its speed ±300 rpm and its torque `torque(direction, t)`, which steps
+    /// with the direction.
+    pub(crate) fn reversing_axis(
         times: impl Iterator<Item = f64>,
         speed_noise: f64,
         torque: impl Fn(f64, f64) -> f64,
     ) -> Recording {
         axis_recording(times.enumerate().map(|(k, t)| {
-            let direction = if (t.floor() as i64 / 7) % 2 == 0 {
-                1.0
-            } else {
-                -1.0
-            };
+            let direction = direction_at(t);
             // A deterministic ripple standing in for the speed's noise, half the reversals
             // reading inside the step.
             let ripple = speed_noise * [1.0, -1.0, -0.5, 0.5][k % 4];

@@ -1045,21 +1045,16 @@ impl Context {
             return moved;
         };
         let samples = own.at_each(self.time.iter().map(|t| t - delay_s));
-        match &own.on_rows {
-            Some(on_rows) => {
-                let raw = shifted(&self.time, on_rows, delay_s);
-                for ((value, sample), raw) in moved.iter_mut().zip(samples).zip(raw) {
-                    if let Some(sample) = sample {
-                        *value += sample - raw;
-                    }
-                }
-            }
-            None => {
-                for (value, sample) in moved.iter_mut().zip(samples) {
-                    if let Some(sample) = sample {
-                        *value = sample;
-                    }
-                }
+        let raw = own
+            .on_rows
+            .as_ref()
+            .map(|on_rows| shifted(&self.time, on_rows, delay_s));
+        for (row, (value, sample)) in moved.iter_mut().zip(samples).enumerate() {
+            if let Some(sample) = sample {
+                *value = match &raw {
+                    Some(raw) => *value + (sample - raw[row]),
+                    None => sample,
+                };
             }
         }
         moved
@@ -3853,23 +3848,11 @@ mod tests {
     /// A feed axis reversing every 7 s at `times`, its torque ±(0.5 + 0.01 t) N·m (a drag
     /// that grows along the stroke) as measured `delay_s` late.
     fn delayed_axis(times: impl Iterator<Item = f64>, delay_s: f64) -> crate::signal::Recording {
-        let names = ["time_s", "X.speed_rpm", "X.torque_Nm"]
-            .map(String::from)
-            .to_vec();
-        let mut recording = crate::signal::Recording::new("axis", names).expect("a valid header");
-        let direction = |t: f64| {
-            if (t.floor() as i64).div_euclid(7) % 2 == 0 {
-                1.0
-            } else {
-                -1.0
-            }
-        };
-        for t in times {
+        use super::super::align::tests::{direction_at, reversing_axis};
+        reversing_axis(times, 0.0, |_, t| {
             let was = t - delay_s;
-            let row = [t, 300.0 * direction(t), direction(was) * (0.5 + 0.01 * was)];
-            recording.push_row(&row).expect("a valid row");
-        }
-        recording
+            direction_at(was) * (0.5 + 0.01 * was)
+        })
     }
 
     #[test]
