@@ -137,9 +137,13 @@ fn warn_of_weak_models(report: &CalibrationReport, database: &[Recording]) {
         );
     }
     for m in report.models.iter().filter(|m| m.cv_r2 < WEAK_CV_R2) {
+        let why = m
+            .coverage
+            .as_deref()
+            .unwrap_or("the database may be too short or too uniform for it");
         eprintln!(
-            "warning: {} predicts its held-out blocks poorly (CV R² {:.3}): the database may be \
-             too short or too uniform for it; check its estimates before trusting them",
+            "warning: {} predicts its held-out blocks poorly (CV R² {:.3}): {why}; check its \
+             estimates before trusting them",
             m.estimate, m.cv_r2
         );
     }

@@ -26,7 +26,7 @@ use crate::profile::{AxisKind, MachineProfile};
 use crate::signal::channel::{AMBIENT, COOLANT};
 use crate::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
 
-use super::abnormality;
+use super::abnormality::{self, TorqueBlock};
 use super::models::{
     AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
     BED_LAG_TAUS_S, COOLANT_LAG_FEATURES, Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES,
@@ -134,6 +134,11 @@ pub struct ModelReport {
     /// The correction the experiments made, if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub experiment_correction: Option<ExperimentCorrection>,
+    /// What the database lacks for this model, when calibration can tell (the motor
+    /// abnormality's steady running at a single speed): why its held-out figure may be poor
+    /// and what a better database holds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<String>,
 }
 
 /// How experiments corrected a model: measured = offset + gain · database prediction.
@@ -490,6 +495,7 @@ fn fit_abnormality(
     has_ambient: bool,
 ) -> Result<Option<(AbnormalityModel, ModelReport)>, CalibrationError> {
     let mut blocks = Vec::new();
+    let mut database_blocks = 0;
     let tagged = (database.iter().map(|r| (r, false))).chain(experiments.iter().map(|r| (r, true)));
     for (recording, is_experiment) in tagged {
         let Some(samples) = abnormality::recording_samples(recording, axis, stroke_mm) else {
@@ -500,6 +506,9 @@ fn fit_abnormality(
             return Ok(None);
         };
         blocks.extend(abnormality::steady_blocks(samples));
+        if !is_experiment {
+            database_blocks = blocks.len();
+        }
     }
     if blocks.len() < MIN_STEADY_BLOCKS {
         return Ok(None);
@@ -522,13 +531,52 @@ fn fit_abnormality(
             .collect();
     let y: Vec<f64> = blocks.iter().map(|b| b.mean.torque_Nm).collect();
     let estimate = format!("{axis}.motor_abnormality");
-    let fitted = fit_columns(&estimate, "τ_ideal", "motor torque", y, columns)?;
+    let mut fitted = fit_columns(&estimate, "τ_ideal", "motor torque", y, columns)?;
+    fitted.report.coverage =
+        single_speed_coverage(&blocks[..database_blocks], &blocks[database_blocks..]);
     Ok(Some((
         AbnormalityModel {
             ideal_torque: fitted.model,
         },
         fitted.report,
     )))
+}
+
+/// Above this ratio of the fastest to the slowest steady speed, the database's steady running
+/// spans more than one speed and can separate the friction's speed terms from its constant.
+const ONE_SPEED_SPAN: f64 = 1.25;
+
+/// Says so when the database's steady running is at one speed (its fastest block at most
+/// [`ONE_SPEED_SPAN`] times its slowest): the ideal torque's speed and churning terms are then
+/// nearly the direction again, fixed only by the experiments (if they run at other speeds),
+/// and a held-out block of theirs is predicted from the database's single speed.
+fn single_speed_coverage(database: &[TorqueBlock], experiments: &[TorqueBlock]) -> Option<String> {
+    let span = |blocks: &[TorqueBlock]| {
+        blocks
+            .iter()
+            .map(|b| b.mean.speed_rpm.abs())
+            .fold(None, |span: Option<(f64, f64)>, v| {
+                Some(span.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
+            })
+    };
+    let (slowest, fastest) = span(database)?;
+    if fastest > ONE_SPEED_SPAN * slowest {
+        return None;
+    }
+    let widened =
+        span(experiments).filter(|&(lo, hi)| hi.max(fastest) > ONE_SPEED_SPAN * lo.min(slowest));
+    let experiments = match widened {
+        Some((lo, hi)) => format!(
+            "its speed dependence comes from the experiments' {} steady blocks at {lo:.0}–{hi:.0} rpm",
+            experiments.len()
+        ),
+        _ => "nothing else fixes its speed dependence".to_string(),
+    };
+    Some(format!(
+        "the database's {} steady non-cutting blocks all run at {slowest:.0}–{fastest:.0} rpm, one \
+         speed: {experiments}; a database with steady moves at several feeds pins it down",
+        database.len()
+    ))
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -763,6 +811,7 @@ fn fit_joined(
         selected_by: SELECTED_BY_JOINED,
         selection_r2: score,
         experiment_correction: None,
+        coverage: None,
     };
     Ok(Fitted {
         model,
@@ -874,6 +923,7 @@ fn fit_columns(
         selected_by: "blocked_cv",
         selection_r2: cv_r2,
         experiment_correction: None,
+        coverage: None,
     };
     Ok(Fitted {
         model,
@@ -1808,6 +1858,65 @@ mod tests {
             measured.push(truth + offset + wander * slow + 0.05 * draw());
         }
         vec![(predicted, measured)]
+    }
+
+    /// Steady blocks at `speeds_rpm`, alternating direction.
+    fn blocks_at(speeds_rpm: &[f64]) -> Vec<TorqueBlock> {
+        speeds_rpm
+            .iter()
+            .enumerate()
+            .map(|(i, &rpm)| {
+                let speed_rpm = if i % 2 == 0 { rpm } else { -rpm };
+                TorqueBlock {
+                    mean: abnormality::TorqueSample {
+                        time_s: i as f64,
+                        speed_rpm,
+                        torque_Nm: 0.6 * speed_rpm.signum(),
+                        stator_C: 22.0,
+                        ambient_C: 20.0,
+                        stroke_fraction: 0.5,
+                        cutting: false,
+                    },
+                    speed_range_rpm: (speed_rpm, speed_rpm),
+                    samples: 1000,
+                }
+            })
+            .collect()
+    }
+
+    /// A database whose steady running is all at one feed (the twin's DOE seed 4: 1,273 X
+    /// blocks at 431–435 rpm, held-out R² −2752 when the experiments' blocks were predicted from
+    /// it) is named as the reason, with what the experiments add; one that spans several
+    /// speeds is not.
+    #[test]
+    fn a_database_that_runs_steady_at_one_speed_is_named_as_the_reason() {
+        let one_speed = blocks_at(&[431.0, 433.0, 435.0, 432.0]);
+        let note = single_speed_coverage(&one_speed, &blocks_at(&[332.0, 500.0, 777.0]))
+            .expect("one speed is named");
+        assert!(
+            note.contains("4 steady non-cutting blocks all run at 431–435 rpm"),
+            "{note}"
+        );
+        assert!(
+            note.contains("the experiments' 3 steady blocks at 332–777 rpm"),
+            "{note}"
+        );
+        let alone = single_speed_coverage(&one_speed, &[]).expect("one speed is named");
+        assert!(
+            alone.contains("nothing else fixes its speed dependence"),
+            "{alone}"
+        );
+        let uniform_experiments = single_speed_coverage(&one_speed, &blocks_at(&[500.0, 510.0]));
+        assert!(
+            uniform_experiments.is_some_and(|n| n.contains("nothing else")),
+            "experiments at one speed of their own do not fix it either"
+        );
+        assert_eq!(
+            single_speed_coverage(&blocks_at(&[200.0, 433.0, 900.0]), &[]),
+            None,
+            "a database at several speeds pins the speed terms down"
+        );
+        assert_eq!(single_speed_coverage(&[], &[]), None);
     }
 
     #[test]
