@@ -135,8 +135,9 @@ pub struct ModelReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub experiment_correction: Option<ExperimentCorrection>,
     /// What the database lacks for this model, when calibration can tell (the motor
-    /// abnormality's steady running at a single speed): why its held-out figure may be poor
-    /// and what a better database holds.
+    /// abnormality's steady running at a single speed, or none at all), whatever the held-out
+    /// figure: the model then rests on the experiments, and a held-out block of theirs is
+    /// predicted from what the database lacks. Says what a better database holds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<String>,
 }
@@ -547,10 +548,12 @@ fn fit_abnormality(
 const ONE_SPEED_SPAN: f64 = 1.25;
 
 /// Says so when the database's steady running is at one speed (its fastest block at most
-/// [`ONE_SPEED_SPAN`] times its slowest): the ideal torque's speed and churning terms are then
-/// nearly the direction again, fixed only by the experiments (if they run at other speeds),
-/// and a held-out block of theirs is predicted from the database's single speed.
+/// [`ONE_SPEED_SPAN`] times its slowest) or absent: the ideal torque's speed and churning
+/// terms are then nearly the direction again, fixed only by the experiments (if, with the
+/// database, they span more than one speed), and a held-out block of theirs is predicted from
+/// the database's single speed. `None` when the database spans several speeds.
 fn single_speed_coverage(database: &[TorqueBlock], experiments: &[TorqueBlock]) -> Option<String> {
+    // `None` for no blocks: there is no speed to span.
     let span = |blocks: &[TorqueBlock]| {
         blocks
             .iter()
@@ -559,22 +562,36 @@ fn single_speed_coverage(database: &[TorqueBlock], experiments: &[TorqueBlock]) 
                 Some(span.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
             })
     };
-    let (slowest, fastest) = span(database)?;
-    if fastest > ONE_SPEED_SPAN * slowest {
+    let several = |(lo, hi): (f64, f64)| hi > ONE_SPEED_SPAN * lo;
+    let experiment_span = span(experiments);
+    let Some((slowest, fastest)) = span(database) else {
+        let rests_on = match experiment_span {
+            Some((lo, hi)) => format!(
+                "the fit rests on the experiments' {} steady blocks at {lo:.0}–{hi:.0} rpm",
+                experiments.len()
+            ),
+            None => "nothing fixes the model".to_string(),
+        };
+        return Some(format!(
+            "the database holds no steady non-cutting running: {rests_on}; a database with steady \
+             running at several speeds pins it down"
+        ));
+    };
+    if several((slowest, fastest)) {
         return None;
     }
-    let widened =
-        span(experiments).filter(|&(lo, hi)| hi.max(fastest) > ONE_SPEED_SPAN * lo.min(slowest));
+    let widened = experiment_span.filter(|&(lo, hi)| several((lo.min(slowest), hi.max(fastest))));
     let experiments = match widened {
         Some((lo, hi)) => format!(
-            "its speed dependence comes from the experiments' {} steady blocks at {lo:.0}–{hi:.0} rpm",
+            "the model's speed dependence comes from the experiments' {} steady blocks at \
+             {lo:.0}–{hi:.0} rpm",
             experiments.len()
         ),
-        _ => "nothing else fixes its speed dependence".to_string(),
+        None => "nothing else fixes the model's speed dependence".to_string(),
     };
     Some(format!(
         "the database's {} steady non-cutting blocks all run at {slowest:.0}–{fastest:.0} rpm, one \
-         speed: {experiments}; a database with steady moves at several feeds pins it down",
+         speed: {experiments}; a database with steady running at several speeds pins it down",
         database.len()
     ))
 }
@@ -1884,10 +1901,10 @@ mod tests {
             .collect()
     }
 
-    /// A database whose steady running is all at one feed (the twin's DOE seed 4: 1,273 X
-    /// blocks at 431–435 rpm, held-out R² −2752 when the experiments' blocks were predicted from
-    /// it) is named as the reason, with what the experiments add; one that spans several
-    /// speeds is not.
+    /// A database whose steady running is all at one speed (the twin's DOE seed 4: 1 273 X
+    /// blocks at 431–436 rpm, held-out R² −2752 when the experiments' blocks were predicted
+    /// from it), or that has none, is named as the reason, with what the experiments add; one
+    /// that spans several speeds is not.
     #[test]
     fn a_database_that_runs_steady_at_one_speed_is_named_as_the_reason() {
         let one_speed = blocks_at(&[431.0, 433.0, 435.0, 432.0]);
@@ -1902,21 +1919,104 @@ mod tests {
             "{note}"
         );
         let alone = single_speed_coverage(&one_speed, &[]).expect("one speed is named");
+        assert!(alone.contains("nothing else fixes"), "{alone}");
+        let near = single_speed_coverage(&one_speed, &blocks_at(&[500.0, 510.0]));
         assert!(
-            alone.contains("nothing else fixes its speed dependence"),
-            "{alone}"
+            near.is_some_and(|n| n.contains("nothing else fixes")),
+            "experiments near the database's speed do not widen it"
         );
-        let uniform_experiments = single_speed_coverage(&one_speed, &blocks_at(&[500.0, 510.0]));
+        let apart = single_speed_coverage(&one_speed, &blocks_at(&[900.0, 905.0]));
         assert!(
-            uniform_experiments.is_some_and(|n| n.contains("nothing else")),
-            "experiments at one speed of their own do not fix it either"
+            apart.is_some_and(|n| n.contains("the experiments' 2 steady blocks at 900–905 rpm")),
+            "experiments at one speed of their own, far from the database's, widen it"
+        );
+        assert!(
+            single_speed_coverage(&blocks_at(&[400.0, 500.0]), &[]).is_some(),
+            "a span of exactly {ONE_SPEED_SPAN} is still one speed"
         );
         assert_eq!(
-            single_speed_coverage(&blocks_at(&[200.0, 433.0, 900.0]), &[]),
+            single_speed_coverage(&blocks_at(&[400.0, 501.0]), &[]),
             None,
-            "a database at several speeds pins the speed terms down"
+            "just beyond it the database pins the speed terms down"
         );
-        assert_eq!(single_speed_coverage(&[], &[]), None);
+        let none = single_speed_coverage(&[], &blocks_at(&[332.0, 777.0])).expect("named");
+        assert!(
+            none.contains("no steady non-cutting running: the fit rests on the experiments' 2"),
+            "{none}"
+        );
+    }
+
+    /// An X axis that runs steady at each of `speeds_rpm` in turn for five minutes, reversing
+    /// every minute, with a friction torque that grows with speed; `with_cut_depth` false leaves
+    /// out the depth of cut (such a recording cannot tell friction from cutting).
+    fn steady_running(speeds_rpm: &[f64], with_cut_depth: bool, seed: u64) -> Recording {
+        let mut names = vec![
+            "time_s".to_string(),
+            axis_column(AxisId::X, Quantity::Speed),
+            axis_column(AxisId::X, Quantity::Torque),
+            axis_column(AxisId::X, Quantity::StatorTemp),
+            AMBIENT.to_string(),
+        ];
+        if with_cut_depth {
+            names.push(crate::signal::channel::CUT_DEPTH.to_string());
+        }
+        let mut recording = Recording::new(format!("steady-{seed}"), names).unwrap();
+        let mut draw = noise(seed);
+        let mut i = 0;
+        for &rpm in speeds_rpm {
+            for _ in 0..300 {
+                let direction = if (i / 60) % 2 == 0 { 1.0 } else { -1.0 };
+                let speed = direction * rpm;
+                let torque = direction * (0.5 + 0.0002 * rpm) + 0.01 * draw();
+                // The stator warms and the room wanders, as on a machine at work.
+                let stator_C = 22.0 + (i as f64 / 600.0).sqrt() + 0.05 * draw();
+                let room_C = 20.0 + 0.5 * (i as f64 / 500.0).sin();
+                let mut row = vec![i as f64, speed, torque, stator_C, room_C];
+                if with_cut_depth {
+                    row.push(0.0);
+                }
+                recording.push_row(&row).unwrap();
+                i += 1;
+            }
+        }
+        recording
+    }
+
+    /// The coverage note counts the blocks of every database recording as the database's and
+    /// only the experiments that can be scored as the experiments' (one without a depth of cut
+    /// adds nothing).
+    #[test]
+    fn the_coverage_note_counts_each_recordings_blocks_on_its_own_side() {
+        let database = [
+            steady_running(&[433.0; 2], true, 1),
+            steady_running(&[435.0; 2], true, 2),
+        ];
+        let experiments = [
+            steady_running(&[150.0, 800.0], false, 3),
+            steady_running(&[200.0, 700.0], true, 4),
+        ];
+        let (_, report) = fit_abnormality(AxisId::X, None, &database, &experiments, true)
+            .unwrap()
+            .expect("enough steady blocks");
+        let note = report.coverage.expect("one database speed is named");
+        let blocks = |r: &Recording| {
+            abnormality::steady_blocks(abnormality::recording_samples(r, AxisId::X, None).unwrap())
+                .len()
+        };
+        let database_blocks = blocks(&database[0]) + blocks(&database[1]);
+        assert!(
+            note.contains(&format!(
+                "the database's {database_blocks} steady non-cutting blocks all run at 433–435 rpm"
+            )),
+            "{note}"
+        );
+        assert!(
+            note.contains(&format!(
+                "the experiments' {} steady blocks at 200–700 rpm",
+                blocks(&experiments[1])
+            )),
+            "{note}"
+        );
     }
 
     #[test]
