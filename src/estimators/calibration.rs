@@ -19,7 +19,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::discrepancy::series::rms;
+use crate::discrepancy::series::{rms, span};
 use crate::fit::autocorrelation::mean_above_zero;
 use crate::fit::{Design, FitError, OlsFit, OlsOptions, blocked_cross_validation, ols, wls};
 use crate::profile::{AxisKind, MachineProfile};
@@ -554,17 +554,13 @@ const ONE_SPEED_SPAN: f64 = 1.25;
 /// the database's single speed. `None` when the database spans several speeds.
 fn single_speed_coverage(database: &[TorqueBlock], experiments: &[TorqueBlock]) -> Option<String> {
     // `None` for no blocks: there is no speed to span.
-    let span = |blocks: &[TorqueBlock]| {
-        blocks
-            .iter()
-            .map(|b| b.mean.speed_rpm.abs())
-            .fold(None, |span: Option<(f64, f64)>, v| {
-                Some(span.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
-            })
+    let speed_span = |blocks: &[TorqueBlock]| {
+        let speeds: Vec<f64> = blocks.iter().map(|b| b.mean.speed_rpm.abs()).collect();
+        (!speeds.is_empty()).then(|| span(&speeds))
     };
     let several = |(lo, hi): (f64, f64)| hi > ONE_SPEED_SPAN * lo;
-    let experiment_span = span(experiments);
-    let Some((slowest, fastest)) = span(database) else {
+    let experiment_span = speed_span(experiments);
+    let Some((slowest, fastest)) = speed_span(database) else {
         let rests_on = match experiment_span {
             Some((lo, hi)) => format!(
                 "the fit rests on the experiments' {} steady blocks at {lo:.0}–{hi:.0} rpm",
