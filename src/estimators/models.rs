@@ -457,6 +457,11 @@ impl BoundModel {
         self.terms.iter().map(|&(i, c)| c * features[i]).sum()
     }
 
+    /// The (feature index, coefficient) pairs, in the model's term order.
+    pub fn terms(&self) -> &[(usize, f64)] {
+        &self.terms
+    }
+
     /// True if the model uses feature `index`.
     pub fn uses(&self, index: usize) -> bool {
         self.terms.iter().any(|(i, _)| *i == index)

@@ -462,14 +462,74 @@ pub struct StraightnessInputs {
     pub coolant_lags: [f64; 2],
 }
 
+/// Number of [`STRAIGHTNESS_FEATURES`].
+const STRAIGHTNESS_FEATURE_COUNT: usize = STRAIGHTNESS_FEATURES.len();
+
+/// The values of [`STRAIGHTNESS_FEATURES`], in its order, from what the models read.
+#[inline]
+fn straightness_features(inputs: &StraightnessInputs) -> [f64; STRAIGHTNESS_FEATURE_COUNT] {
+    let i = inputs;
+    let (f2, b2, m2) = (
+        i.front_C * i.front_C,
+        i.back_C * i.back_C,
+        i.motor_C * i.motor_C,
+    );
+    [
+        1.0,
+        i.front_C,
+        f2,
+        f2 * i.front_C,
+        i.back_C,
+        b2,
+        b2 * i.back_C,
+        i.motor_C,
+        m2,
+        m2 * i.motor_C,
+        i.ambient_C,
+        i.stator_C,
+        i.front_heat,
+        i.front_load_heat,
+        i.back_heat,
+        i.back_load_heat,
+        i.ambient_lags_C[0],
+        i.ambient_lags_C[1],
+        i.ambient_lags_C[2],
+        i.nut_C,
+        i.motor_lags_C[0],
+        i.motor_lags_C[1],
+        i.back_lags_C[0],
+        i.back_lags_C[1],
+        i.coolant_lags[0],
+        i.coolant_lags[1],
+    ]
+}
+
 /// Largest number of straightness nodes an axis may have.
 pub const MAX_NODES: usize = 16;
 
+/// Nodes evaluated together in one block of [`StraightnessEstimator`]'s node-major sums: a
+/// fixed width the compiler turns into vector arithmetic.
+const NODE_BLOCK: usize = 8;
+
 /// Straightness deviation per node from estimated temperatures (Eqs. 13–14), and the ISO 1101
 /// minimum-zone straightness value over the nodes.
+///
+/// Calibration selects the same terms for every node of an axis, so the nodes are evaluated
+/// together: each feature the models read is fetched once and multiplied into a block of
+/// [`NODE_BLOCK`] node sums, a node that does not read it holding a zero coefficient. Summed one
+/// node at a time the gathers, index checks and dependent additions made this the pipeline's
+/// costliest step (a third of its samples under `perf`).
 #[derive(Debug, Clone)]
 pub struct StraightnessEstimator {
     models: Vec<BoundModel>,
+    /// The features any node reads, in the order the nodes list them.
+    read: Vec<usize>,
+    /// Per block of nodes, per feature of `read`: each node's coefficient (zero where the node
+    /// does not read it, and in the lanes past the last node).
+    blocks: Vec<Vec<[f64; NODE_BLOCK]>>,
+    /// True if some node does not read every feature of `read`: a non-finite feature would
+    /// then turn its zero coefficient's product into NaN, so such a frame is summed node by node.
+    nodes_differ: bool,
     positions_mm: Vec<f64>,
 }
 
@@ -486,11 +546,40 @@ impl StraightnessEstimator {
         if models.len() > MAX_NODES {
             return Err(format!("at most {MAX_NODES} straightness nodes"));
         }
+        let models: Vec<BoundModel> = models
+            .iter()
+            .map(|m| BoundModel::bind(m, STRAIGHTNESS_FEATURES))
+            .collect::<Result<_, _>>()?;
+        let mut read: Vec<usize> = Vec::new();
+        for model in &models {
+            for &(index, _) in model.terms() {
+                if !read.contains(&index) {
+                    read.push(index);
+                }
+            }
+        }
+        let blocks = models
+            .chunks(NODE_BLOCK)
+            .map(|block| {
+                read.iter()
+                    .map(|&index| {
+                        let mut lanes = [0.0; NODE_BLOCK];
+                        for (lane, model) in lanes.iter_mut().zip(block) {
+                            if let Some(&(_, c)) = model.terms().iter().find(|(i, _)| *i == index) {
+                                *lane = c;
+                            }
+                        }
+                        lanes
+                    })
+                    .collect()
+            })
+            .collect();
+        let nodes_differ = models.iter().any(|m| m.terms().len() != read.len());
         Ok(StraightnessEstimator {
-            models: models
-                .iter()
-                .map(|m| BoundModel::bind(m, STRAIGHTNESS_FEATURES))
-                .collect::<Result<_, _>>()?,
+            models,
+            read,
+            blocks,
+            nodes_differ,
             positions_mm: positions_mm.to_vec(),
         })
     }
@@ -499,42 +588,25 @@ impl StraightnessEstimator {
     /// these and is computed when read ([`minimum_zone_straightness`]), not on every frame.
     #[inline]
     pub fn update(&self, inputs: &StraightnessInputs, out: &mut [f64; MAX_NODES]) {
-        let i = inputs;
-        let (f2, b2, m2) = (
-            i.front_C * i.front_C,
-            i.back_C * i.back_C,
-            i.motor_C * i.motor_C,
-        );
-        let features = [
-            1.0,
-            i.front_C,
-            f2,
-            f2 * i.front_C,
-            i.back_C,
-            b2,
-            b2 * i.back_C,
-            i.motor_C,
-            m2,
-            m2 * i.motor_C,
-            i.ambient_C,
-            i.stator_C,
-            i.front_heat,
-            i.front_load_heat,
-            i.back_heat,
-            i.back_load_heat,
-            i.ambient_lags_C[0],
-            i.ambient_lags_C[1],
-            i.ambient_lags_C[2],
-            i.nut_C,
-            i.motor_lags_C[0],
-            i.motor_lags_C[1],
-            i.back_lags_C[0],
-            i.back_lags_C[1],
-            i.coolant_lags[0],
-            i.coolant_lags[1],
-        ];
-        for (slot, model) in out.iter_mut().zip(&self.models) {
-            *slot = model.eval(&features);
+        let features = straightness_features(inputs);
+        if self.nodes_differ && self.read.iter().any(|&k| !features[k].is_finite()) {
+            for (slot, model) in out.iter_mut().zip(&self.models) {
+                *slot = model.eval(&features);
+            }
+            return;
+        }
+        let nodes = self.models.len();
+        for (block, slots) in self.blocks.iter().zip(out[..nodes].chunks_mut(NODE_BLOCK)) {
+            let mut sums = [0.0; NODE_BLOCK];
+            for (&index, coefficients) in self.read.iter().zip(block) {
+                let x = features[index];
+                for (sum, c) in sums.iter_mut().zip(coefficients) {
+                    *sum += c * x;
+                }
+            }
+            for (slot, sum) in slots.iter_mut().zip(sums) {
+                *slot = sum;
+            }
         }
     }
 
@@ -756,6 +828,93 @@ mod tests {
             .map(|(d, x)| d + 0.01 * x)
             .collect();
         assert!((minimum_zone_straightness(&x, &tilted) - 4.0).abs() < 1e-9);
+    }
+
+    fn straightness_inputs(seed: f64) -> StraightnessInputs {
+        let v = |k: f64| 20.0 + (seed * 7.3 + k * 1.9).sin() * 3.0;
+        StraightnessInputs {
+            front_C: v(1.0),
+            back_C: v(2.0),
+            motor_C: v(3.0),
+            ambient_C: v(4.0),
+            ambient_lags_C: [v(5.0), v(6.0), v(7.0)],
+            stator_C: v(8.0),
+            front_heat: v(9.0) / 40.0,
+            front_load_heat: v(10.0) / 90.0,
+            back_heat: v(11.0) / 40.0,
+            back_load_heat: v(12.0) / 90.0,
+            nut_C: v(13.0),
+            motor_lags_C: [v(14.0), v(15.0)],
+            back_lags_C: [v(16.0), v(17.0)],
+            coolant_lags: [0.3, 0.6],
+        }
+    }
+
+    /// The nodes are summed together, a block of them per fetched feature; each node's value
+    /// must be its own model's sum, bit for bit where the nodes list their terms in the same
+    /// order (as calibration writes them), across a block boundary (nine nodes), with nodes
+    /// that read different terms, and with the slots past the last node left alone.
+    #[test]
+    fn straightness_nodes_summed_together_equal_each_nodes_own_model() {
+        let shared = [
+            "const",
+            "front",
+            "back",
+            "motor",
+            "nut",
+            "ambient_lag_90min",
+        ];
+        let mut models: Vec<LinearModel> = (0..9)
+            .map(|k| {
+                let k = k as f64;
+                let c: Vec<f64> = (0..shared.len())
+                    .map(|j| (k + 1.0) * 0.37 - j as f64 * 0.11)
+                    .collect();
+                LinearModel::with_terms(&shared, &c)
+            })
+            .collect();
+        // Node 4 reads fewer terms, node 7 one no other node reads.
+        models[3] = LinearModel::with_terms(&["const", "back"], &[0.5, -1.25]);
+        models[6] = LinearModel::with_terms(&["const", "front", "stator"], &[0.1, 2.0, -0.7]);
+        let positions: Vec<f64> = (0..9).map(|k| k as f64 * 50.0).collect();
+        let estimator = StraightnessEstimator::new(&models, &positions).expect("binds");
+        let bound: Vec<BoundModel> = models
+            .iter()
+            .map(|m| BoundModel::bind(m, STRAIGHTNESS_FEATURES).expect("binds"))
+            .collect();
+        for seed in 0..20 {
+            let inputs = straightness_inputs(seed as f64);
+            let mut out = [-999.0; MAX_NODES];
+            estimator.update(&inputs, &mut out);
+            let features = straightness_features(&inputs);
+            for (k, model) in bound.iter().enumerate() {
+                let own = model.eval(&features);
+                assert_eq!(out[k].to_bits(), own.to_bits(), "node {}", k + 1);
+            }
+            assert!(
+                out[9..].iter().all(|&v| v == -999.0),
+                "slots past the nodes"
+            );
+        }
+    }
+
+    /// A reading the models cannot have (the nut's estimate missing) makes the nodes that read
+    /// it unknown and leaves the others their value: a zero coefficient must not carry the NaN.
+    #[test]
+    fn a_missing_feature_leaves_the_nodes_that_do_not_read_it_their_value() {
+        let models = [
+            LinearModel::with_terms(&["const", "front", "nut"], &[1.0, 0.5, 0.25]),
+            LinearModel::with_terms(&["const", "front"], &[1.0, 0.5]),
+        ];
+        let estimator = StraightnessEstimator::new(&models, &[0.0, 100.0]).expect("binds");
+        let mut inputs = straightness_inputs(1.0);
+        let mut out = [f64::NAN; MAX_NODES];
+        estimator.update(&inputs, &mut out);
+        assert!(out[0].is_finite() && out[1].is_finite());
+        inputs.nut_C = f64::NAN;
+        estimator.update(&inputs, &mut out);
+        assert!(out[0].is_nan());
+        assert_eq!(out[1], 1.0 + 0.5 * inputs.front_C);
     }
 
     /// The minimum zone never exceeds the zone around the end-point line and is never negative.
