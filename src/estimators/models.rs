@@ -477,6 +477,102 @@ impl BoundModel {
     }
 }
 
+/// Models that read one feature vector, bound to be evaluated together, `L` of them (lanes) at
+/// a time: each feature any of them reads is fetched once and multiplied into `L` sums, a model
+/// that does not read it holding a zero coefficient. Summed one model at a time, the gathers,
+/// index checks and dependent additions cost several times the multiply-adds themselves; with
+/// a fixed `L` the compiler turns a feature's `L` products into vector arithmetic.
+///
+/// Each model's value is the sum of its terms in the order the models list them, so it equals
+/// [`BoundModel::eval`] bit for bit when the models list their common terms in the same order
+/// (calibration writes every straightness node's terms alike); otherwise to rounding.
+#[derive(Debug, Clone)]
+pub struct LaneModels<const L: usize> {
+    models: Vec<BoundModel>,
+    /// The features any model reads, in the order the models list them.
+    read: Vec<usize>,
+    /// Per block of `L` models, per feature of `read`: each model's coefficient (zero where it
+    /// does not read the feature, and in the lanes past the last model).
+    blocks: Vec<Vec<[f64; L]>>,
+    /// True if some model does not read every feature of `read`: a non-finite feature would
+    /// then turn its zero coefficient's product into NaN, so such features are summed model by
+    /// model.
+    lanes_differ: bool,
+}
+
+impl<const L: usize> LaneModels<L> {
+    /// Lays out bound models for evaluation together.
+    pub fn new(models: Vec<BoundModel>) -> Self {
+        let mut read: Vec<usize> = Vec::new();
+        for model in &models {
+            for &(index, _) in model.terms() {
+                if !read.contains(&index) {
+                    read.push(index);
+                }
+            }
+        }
+        let blocks = models
+            .chunks(L)
+            .map(|block| {
+                read.iter()
+                    .map(|&index| {
+                        let mut lanes = [0.0; L];
+                        for (lane, model) in lanes.iter_mut().zip(block) {
+                            if let Some(&(_, c)) = model.terms().iter().find(|(i, _)| *i == index) {
+                                *lane = c;
+                            }
+                        }
+                        lanes
+                    })
+                    .collect()
+            })
+            .collect();
+        let lanes_differ = models.iter().any(|m| m.terms().len() != read.len());
+        LaneModels {
+            models,
+            read,
+            blocks,
+            lanes_differ,
+        }
+    }
+
+    /// The models, in lane order.
+    pub fn models(&self) -> &[BoundModel] {
+        &self.models
+    }
+
+    /// False if a feature is non-finite where some model does not read it (see `lanes_differ`).
+    #[inline]
+    fn together(&self, finite: impl Fn(usize) -> bool) -> bool {
+        !self.lanes_differ || self.read.iter().all(|&k| finite(k))
+    }
+
+    /// Every model on the one feature vector `features`, into `out[..models]` (the rest of
+    /// `out` is left alone).
+    #[inline]
+    pub fn eval_shared(&self, features: &[f64], out: &mut [f64]) {
+        let out = &mut out[..self.models.len()];
+        if !self.together(|k| features[k].is_finite()) {
+            for (slot, model) in out.iter_mut().zip(&self.models) {
+                *slot = model.eval(features);
+            }
+            return;
+        }
+        for (block, slots) in self.blocks.iter().zip(out.chunks_mut(L)) {
+            let mut sums = [0.0; L];
+            for (&index, coefficients) in self.read.iter().zip(block) {
+                let x = features[index];
+                for (sum, c) in sums.iter_mut().zip(coefficients) {
+                    *sum += c * x;
+                }
+            }
+            for (slot, sum) in slots.iter_mut().zip(sums) {
+                *slot = sum;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

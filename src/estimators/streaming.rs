@@ -7,7 +7,8 @@
 
 use super::models::{
     AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
-    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
+    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels, LinearModel, RATIO_FEATURES,
+    STRAIGHTNESS_FEATURES,
 };
 
 /// rpm → rad/s.
@@ -507,29 +508,15 @@ fn straightness_features(inputs: &StraightnessInputs) -> [f64; STRAIGHTNESS_FEAT
 /// Largest number of straightness nodes an axis may have.
 pub const MAX_NODES: usize = 16;
 
-/// Nodes evaluated together in one block of [`StraightnessEstimator`]'s node-major sums: a
-/// fixed width the compiler turns into vector arithmetic.
-const NODE_BLOCK: usize = 8;
-
 /// Straightness deviation per node from estimated temperatures (Eqs. 13–14), and the ISO 1101
 /// minimum-zone straightness value over the nodes.
 ///
 /// Calibration selects the same terms for every node of an axis, so the nodes are evaluated
-/// together: each feature the models read is fetched once and multiplied into a block of
-/// [`NODE_BLOCK`] node sums, a node that does not read it holding a zero coefficient. Summed one
-/// node at a time the gathers, index checks and dependent additions made this the pipeline's
-/// costliest step (a third of its samples under `perf`).
+/// together, eight to a block ([`LaneModels`]): summed one node at a time, the ten nodes of an
+/// axis were the pipeline's costliest step (a third of its `perf` samples).
 #[derive(Debug, Clone)]
 pub struct StraightnessEstimator {
-    models: Vec<BoundModel>,
-    /// The features any node reads, in the order the nodes list them.
-    read: Vec<usize>,
-    /// Per block of nodes, per feature of `read`: each node's coefficient (zero where the node
-    /// does not read it, and in the lanes past the last node).
-    blocks: Vec<Vec<[f64; NODE_BLOCK]>>,
-    /// True if some node does not read every feature of `read`: a non-finite feature would
-    /// then turn its zero coefficient's product into NaN, so such a frame is summed node by node.
-    nodes_differ: bool,
+    nodes: LaneModels<8>,
     positions_mm: Vec<f64>,
 }
 
@@ -546,40 +533,12 @@ impl StraightnessEstimator {
         if models.len() > MAX_NODES {
             return Err(format!("at most {MAX_NODES} straightness nodes"));
         }
-        let models: Vec<BoundModel> = models
+        let models = models
             .iter()
             .map(|m| BoundModel::bind(m, STRAIGHTNESS_FEATURES))
             .collect::<Result<_, _>>()?;
-        let mut read: Vec<usize> = Vec::new();
-        for model in &models {
-            for &(index, _) in model.terms() {
-                if !read.contains(&index) {
-                    read.push(index);
-                }
-            }
-        }
-        let blocks = models
-            .chunks(NODE_BLOCK)
-            .map(|block| {
-                read.iter()
-                    .map(|&index| {
-                        let mut lanes = [0.0; NODE_BLOCK];
-                        for (lane, model) in lanes.iter_mut().zip(block) {
-                            if let Some(&(_, c)) = model.terms().iter().find(|(i, _)| *i == index) {
-                                *lane = c;
-                            }
-                        }
-                        lanes
-                    })
-                    .collect()
-            })
-            .collect();
-        let nodes_differ = models.iter().any(|m| m.terms().len() != read.len());
         Ok(StraightnessEstimator {
-            models,
-            read,
-            blocks,
-            nodes_differ,
+            nodes: LaneModels::new(models),
             positions_mm: positions_mm.to_vec(),
         })
     }
@@ -588,32 +547,15 @@ impl StraightnessEstimator {
     /// these and is computed when read ([`minimum_zone_straightness`]), not on every frame.
     #[inline]
     pub fn update(&self, inputs: &StraightnessInputs, out: &mut [f64; MAX_NODES]) {
-        let features = straightness_features(inputs);
-        if self.nodes_differ && self.read.iter().any(|&k| !features[k].is_finite()) {
-            for (slot, model) in out.iter_mut().zip(&self.models) {
-                *slot = model.eval(&features);
-            }
-            return;
-        }
-        let nodes = self.models.len();
-        for (block, slots) in self.blocks.iter().zip(out[..nodes].chunks_mut(NODE_BLOCK)) {
-            let mut sums = [0.0; NODE_BLOCK];
-            for (&index, coefficients) in self.read.iter().zip(block) {
-                let x = features[index];
-                for (sum, c) in sums.iter_mut().zip(coefficients) {
-                    *sum += c * x;
-                }
-            }
-            for (slot, sum) in slots.iter_mut().zip(sums) {
-                *slot = sum;
-            }
-        }
+        self.nodes
+            .eval_shared(&straightness_features(inputs), out.as_mut_slice());
     }
 
     /// True if a node's model reads a feature whose name starts with `prefix` (to check that
     /// the recording and the profile provide what it needs).
     pub fn uses_features_starting_with(&self, prefix: &str) -> bool {
-        self.models
+        self.nodes
+            .models()
             .iter()
             .any(|m| m.uses_features_starting_with(STRAIGHTNESS_FEATURES, prefix))
     }
@@ -625,7 +567,7 @@ impl StraightnessEstimator {
 
     /// Number of nodes.
     pub fn nodes(&self) -> usize {
-        self.models.len()
+        self.nodes.models().len()
     }
 }
 
