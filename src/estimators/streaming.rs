@@ -14,8 +14,17 @@ use super::models::{
 /// rpm → rad/s.
 const RPM_TO_RAD_PER_S: f64 = std::f64::consts::PI / 30.0;
 
+/// Relative difference under which a step reuses the cached factor of
+/// [`HeatAccumulator`]. The time stamps of a steady rate differ from step to step by a few
+/// ulp (`i as f64 / 1000.0`, or decimal text read back), which an exact comparison takes for a
+/// new step, paying an `exp` on every accumulator of every frame: at 1 kHz that was a fifth of
+/// the pipeline's time. A factor reused for a step 1e-9 off is 1e-9 off itself, far below what
+/// any sensor resolves.
+const SAME_STEP: f64 = 1e-9;
+
 /// First-order accumulation with time constant τ, exact for any step: x ← x + (1 − e^(−Δt/τ))(u − x).
-/// The factor is cached for the current step, so a steady sample rate costs no `exp`.
+/// The factor is cached for the current step, so a steady sample rate costs no `exp`
+/// ([`SAME_STEP`]).
 #[derive(Debug, Clone)]
 pub struct HeatAccumulator {
     tau_s: f64,
@@ -44,7 +53,9 @@ impl HeatAccumulator {
     /// Adds one sample of heat input `current` over `dt` seconds; returns the accumulated heat.
     #[inline]
     pub fn update(&mut self, current: f64, dt: f64) -> f64 {
-        if dt != self.cached_dt {
+        // False while the cache is NaN, so that the first step computes its factor.
+        let same_step = (dt - self.cached_dt).abs() <= SAME_STEP * self.cached_dt;
+        if !same_step {
             self.cached_dt = dt;
             self.cached_factor = if dt > 0.0 {
                 1.0 - (-dt / self.tau_s).exp()
@@ -870,6 +881,37 @@ mod tests {
             - residuals.iter().cloned().fold(f64::INFINITY, f64::min);
         let zone = minimum_zone_straightness(&x, &d);
         assert!(zone >= 0.0 && zone <= end_point + 1e-12);
+    }
+
+    /// Time stamps of a steady 1 kHz rate, as floating point makes them (`i / 1000`), step by
+    /// a few ulp more or less each sample; the accumulation must still follow the closed form
+    /// 1 − e^(−t/τ) to far below any sensor's resolution, and a step that is truly different
+    /// (a millionth longer) must get its own factor.
+    #[test]
+    fn steps_that_differ_by_rounding_alone_accumulate_as_one_rate() {
+        let tau = 120.0;
+        let mut acc = HeatAccumulator::new(tau);
+        let mut previous = 0.0;
+        for i in 1..=200_000 {
+            let t = i as f64 / 1000.0;
+            acc.update(1.0, t - previous);
+            previous = t;
+        }
+        let exact = 1.0 - (-200.0_f64 / tau).exp();
+        assert!(
+            (acc.value() - exact).abs() < 1e-9 * exact,
+            "{} against {exact}",
+            acc.value()
+        );
+        let mut acc = HeatAccumulator::new(tau);
+        acc.update(1.0, 1.0);
+        acc.update(1.0, 1.000_001);
+        let exact = 1.0 - (-2.000_001_f64 / tau).exp();
+        assert!(
+            (acc.value() - exact).abs() < 1e-15,
+            "{} against {exact}",
+            acc.value()
+        );
     }
 
     /// A machine that has stood in its room is at the room's temperature: the lags start there
