@@ -85,9 +85,9 @@ fn pipeline(c: &mut Criterion) {
             pipeline.feed_axis(AxisId::Z).map(|e| e.nut_C)
         })
     });
-    // The same frames stamped 1 ms apart, as a drive streams them at 1 kHz: the abnormality
+    // The same frames stamped 1 ms apart, as a 1 kHz recording counts them: the abnormality
     // scores then close a 1 s block on one frame in a thousand, where on the twin's 1 s rows
-    // every frame closes one (the bench above is the worst case, this the live one).
+    // every frame closes one, and the steps differ by a few ulp from frame to frame.
     let live: Vec<Vec<f64>> = frames
         .iter()
         .enumerate()

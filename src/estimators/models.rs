@@ -462,9 +462,17 @@ impl BoundModel {
         &self.terms
     }
 
+    /// The coefficient of feature `index`, if the model reads it.
+    pub fn coefficient(&self, index: usize) -> Option<f64> {
+        self.terms
+            .iter()
+            .find(|(i, _)| *i == index)
+            .map(|&(_, c)| c)
+    }
+
     /// True if the model uses feature `index`.
     pub fn uses(&self, index: usize) -> bool {
-        self.terms.iter().any(|(i, _)| *i == index)
+        self.coefficient(index).is_some()
     }
 
     /// True if the model, bound to `features`, reads one whose name starts with `prefix` (to
@@ -483,9 +491,11 @@ impl BoundModel {
 /// index checks and dependent additions cost several times the multiply-adds themselves; with
 /// a fixed `L` the compiler turns a feature's `L` products into vector arithmetic.
 ///
-/// Each model's value is the sum of its terms in the order the models list them, so it equals
-/// [`BoundModel::eval`] bit for bit when the models list their common terms in the same order
-/// (calibration writes every straightness node's terms alike); otherwise to rounding.
+/// Each model's value is the sum of its terms in the order the features first appear across
+/// the models, so it equals [`BoundModel::eval`] bit for bit (up to the sign of a zero sum)
+/// when each model lists its terms in that order — as when every model has the same terms in
+/// the same order, which is what the shipped calibration's straightness nodes have; otherwise
+/// it equals it to rounding.
 #[derive(Debug, Clone)]
 pub struct LaneModels<const L: usize> {
     models: Vec<BoundModel>,
@@ -495,14 +505,15 @@ pub struct LaneModels<const L: usize> {
     /// does not read the feature, and in the lanes past the last model).
     blocks: Vec<Vec<[f64; L]>>,
     /// True if some model does not read every feature of `read`: a non-finite feature would
-    /// then turn its zero coefficient's product into NaN, so such features are summed model by
-    /// model.
+    /// then turn its zero coefficient's product into NaN, so a frame with a non-finite feature
+    /// is summed model by model.
     lanes_differ: bool,
 }
 
 impl<const L: usize> LaneModels<L> {
     /// Lays out bound models for evaluation together.
     pub fn new(models: Vec<BoundModel>) -> Self {
+        const { assert!(L > 0, "a block has at least one lane") };
         let mut read: Vec<usize> = Vec::new();
         for model in &models {
             for &(index, _) in model.terms() {
@@ -518,7 +529,7 @@ impl<const L: usize> LaneModels<L> {
                     .map(|&index| {
                         let mut lanes = [0.0; L];
                         for (lane, model) in lanes.iter_mut().zip(block) {
-                            if let Some(&(_, c)) = model.terms().iter().find(|(i, _)| *i == index) {
+                            if let Some(c) = model.coefficient(index) {
                                 *lane = c;
                             }
                         }
@@ -541,7 +552,8 @@ impl<const L: usize> LaneModels<L> {
         &self.models
     }
 
-    /// False if a feature is non-finite where some model does not read it (see `lanes_differ`).
+    /// False if the lanes differ (`lanes_differ`) and a feature some model reads is not
+    /// finite: the frame is then summed model by model.
     #[inline]
     fn together(&self, finite: impl Fn(usize) -> bool) -> bool {
         !self.lanes_differ || self.read.iter().all(|&k| finite(k))
@@ -549,6 +561,10 @@ impl<const L: usize> LaneModels<L> {
 
     /// Every model on the one feature vector `features`, into `out[..models]` (the rest of
     /// `out` is left alone).
+    ///
+    /// # Panics
+    ///
+    /// If `out` is shorter than the number of models, or `features` than a model reads.
     #[inline]
     pub fn eval_shared(&self, features: &[f64], out: &mut [f64]) {
         let out = &mut out[..self.models.len()];

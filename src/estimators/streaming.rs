@@ -19,12 +19,32 @@ const RPM_TO_RAD_PER_S: f64 = std::f64::consts::PI / 30.0;
 /// ulp (`i as f64 / 1000.0`, or decimal text read back), which an exact comparison takes for a
 /// new step, paying an `exp` on every accumulator of every frame: at 1 kHz that was a fifth of
 /// the pipeline's time. A factor reused for a step 1e-9 off is 1e-9 off itself, far below what
-/// any sensor resolves.
+/// any sensor resolves. The ulp of a time stamp grows with it, so late in a long run (past
+/// 2¹³ s at 1 kHz) and on a live link, whose stamps are arrival times that jitter by
+/// microseconds, steps still miss the cache: [`lag_factor`] makes a miss cheap there.
 const SAME_STEP: f64 = 1e-9;
 
-/// First-order accumulation with time constant τ, exact for any step: x ← x + (1 − e^(−Δt/τ))(u − x).
-/// The factor is cached for the current step, so a steady sample rate costs no `exp`
-/// ([`SAME_STEP`]).
+/// Below this Δt/τ, [`lag_factor`] sums the series instead of calling `exp`.
+const SERIES_BELOW: f64 = 1e-4;
+
+/// The share of the way a first-order lag of time constant `tau_s` moves towards its input in
+/// `dt_s`, 1 − e^(−Δt/τ). For the short steps of a fast sample rate (Δt/τ below
+/// [`SERIES_BELOW`]) the series x − x²/2 + x³/6 − x⁴/24 is exact to rounding (the next term is
+/// x⁴/120 of the sum, under 1e-18) and both cheaper than `exp` and more accurate than
+/// `1 − e^(−x)`, which loses the digits of x that cancel against the 1.
+#[inline]
+pub fn lag_factor(dt_s: f64, tau_s: f64) -> f64 {
+    let x = dt_s / tau_s;
+    if x < SERIES_BELOW {
+        x * (1.0 - x * (0.5 - x * (1.0 / 6.0 - x / 24.0)))
+    } else {
+        1.0 - (-x).exp()
+    }
+}
+
+/// First-order accumulation with time constant τ: x ← x + (1 − e^(−Δt/τ))(u − x), exact for
+/// any step up to the [`SAME_STEP`] by which a reused factor's step may differ. The factor is
+/// cached for the current step, so a steady sample rate computes it once.
 #[derive(Debug, Clone)]
 pub struct HeatAccumulator {
     tau_s: f64,
@@ -47,18 +67,20 @@ impl HeatAccumulator {
     /// The paper's C_BH at a sample rate, `1 − e^(−1/(rate·τ))`: the coefficient fitted at one
     /// rate is rescaled to another through τ.
     pub fn c_bh_at_rate(tau_s: f64, rate_hz: f64) -> f64 {
-        1.0 - (-1.0 / (rate_hz * tau_s)).exp()
+        lag_factor(1.0 / rate_hz, tau_s)
     }
 
     /// Adds one sample of heat input `current` over `dt` seconds; returns the accumulated heat.
     #[inline]
     pub fn update(&mut self, current: f64, dt: f64) -> f64 {
-        // False while the cache is NaN, so that the first step computes its factor.
-        let same_step = (dt - self.cached_dt).abs() <= SAME_STEP * self.cached_dt;
+        // False while the cache is NaN, so that the first step computes its factor; an
+        // infinite cached step would take every later step for itself.
+        let same_step =
+            self.cached_dt.is_finite() && (dt - self.cached_dt).abs() <= SAME_STEP * self.cached_dt;
         if !same_step {
             self.cached_dt = dt;
             self.cached_factor = if dt > 0.0 {
-                1.0 - (-dt / self.tau_s).exp()
+                lag_factor(dt, self.tau_s)
             } else {
                 0.0
             };
@@ -522,9 +544,9 @@ pub const MAX_NODES: usize = 16;
 /// Straightness deviation per node from estimated temperatures (Eqs. 13–14), and the ISO 1101
 /// minimum-zone straightness value over the nodes.
 ///
-/// Calibration selects the same terms for every node of an axis, so the nodes are evaluated
-/// together, eight to a block ([`LaneModels`]): summed one node at a time, the ten nodes of an
-/// axis were the pipeline's costliest step (a third of its `perf` samples).
+/// The nodes of a direction are evaluated together, eight to a block ([`LaneModels`]): the
+/// shipped calibration gives every node the same terms, and summed one node at a time the
+/// nodes were the pipeline's costliest step (a third of its `perf` samples).
 #[derive(Debug, Clone)]
 pub struct StraightnessEstimator {
     nodes: LaneModels<8>,
@@ -864,10 +886,12 @@ mod tests {
         let mut out = [f64::NAN; MAX_NODES];
         estimator.update(&inputs, &mut out);
         assert!(out[0].is_finite() && out[1].is_finite());
-        inputs.nut_C = f64::NAN;
-        estimator.update(&inputs, &mut out);
-        assert!(out[0].is_nan());
-        assert_eq!(out[1], 1.0 + 0.5 * inputs.front_C);
+        for missing in [f64::NAN, f64::INFINITY] {
+            inputs.nut_C = missing;
+            estimator.update(&inputs, &mut out);
+            assert!(!out[0].is_finite());
+            assert_eq!(out[1], 1.0 + 0.5 * inputs.front_C);
+        }
     }
 
     /// The minimum zone never exceeds the zone around the end-point line and is never negative.
@@ -884,9 +908,10 @@ mod tests {
     }
 
     /// Time stamps of a steady 1 kHz rate, as floating point makes them (`i / 1000`), step by
-    /// a few ulp more or less each sample; the accumulation must still follow the closed form
-    /// 1 − e^(−t/τ) to far below any sensor's resolution, and a step that is truly different
-    /// (a millionth longer) must get its own factor.
+    /// a few ulp more or less each sample: they are one rate, whose factor is computed once,
+    /// and the accumulation follows the closed form 1 − e^(−t/τ) to far below any sensor's
+    /// resolution. A step that is truly different (a millionth longer) gets its own factor,
+    /// and an infinite step does not stand for every step after it.
     #[test]
     fn steps_that_differ_by_rounding_alone_accumulate_as_one_rate() {
         let tau = 120.0;
@@ -895,9 +920,13 @@ mod tests {
         for i in 1..=200_000 {
             let t = i as f64 / 1000.0;
             acc.update(1.0, t - previous);
+            assert_eq!(
+                acc.cached_dt, 0.001,
+                "the step at {t} s was taken for a new one"
+            );
             previous = t;
         }
-        let exact = 1.0 - (-200.0_f64 / tau).exp();
+        let exact = -(-200.0_f64 / tau).exp_m1();
         assert!(
             (acc.value() - exact).abs() < 1e-9 * exact,
             "{} against {exact}",
@@ -906,12 +935,40 @@ mod tests {
         let mut acc = HeatAccumulator::new(tau);
         acc.update(1.0, 1.0);
         acc.update(1.0, 1.000_001);
-        let exact = 1.0 - (-2.000_001_f64 / tau).exp();
+        let exact = -(-2.000_001_f64 / tau).exp_m1();
         assert!(
             (acc.value() - exact).abs() < 1e-15,
             "{} against {exact}",
             acc.value()
         );
+        let mut acc = HeatAccumulator::new(tau);
+        acc.update(1.0, f64::INFINITY);
+        acc.update(0.0, 1.0);
+        let exact = (-1.0 / tau).exp();
+        assert!(
+            (acc.value() - exact).abs() < 1e-15,
+            "{} against {exact}",
+            acc.value()
+        );
+    }
+
+    /// The lag's factor for the short steps of a fast rate is the series, exact to rounding
+    /// against `exp_m1` (which `1 − e^(−x)` is not: at x = 1e-7 it is 1e-9 off), and continuous
+    /// where it hands over to `exp`.
+    #[test]
+    fn the_short_step_factor_is_exact_to_rounding() {
+        for k in 0..2000 {
+            let x = SERIES_BELOW * (k as f64 + 0.5) / 2000.0 * 10f64.powi(-(k % 9));
+            let exact = -(-x).exp_m1();
+            let factor = lag_factor(x, 1.0);
+            assert!(
+                (factor - exact).abs() <= 2.0 * f64::EPSILON * exact,
+                "x = {x}: {factor} against {exact}"
+            );
+        }
+        let below = lag_factor(SERIES_BELOW * (1.0 - 1e-12), 1.0);
+        let above = lag_factor(SERIES_BELOW, 1.0);
+        assert!((above - below).abs() < 1e-15, "{below} then {above}");
     }
 
     /// A machine that has stood in its room is at the room's temperature: the lags start there
