@@ -12,7 +12,7 @@ use super::streaming::{
     BedLags, ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator,
     RoomLags, SettledLags, SpeedHeat, SpindleElongationEstimator, StraightnessEstimator,
     StraightnessInputs, ThermalSurroundings, TorqueSplit, TorqueSplitEstimator,
-    minimum_zone_straightness,
+    minimum_zone_straightness, straightness_features,
 };
 
 /// Why a pipeline could not be built.
@@ -512,13 +512,14 @@ impl EstimatorPipeline {
                     coolant_lags,
                 };
                 axis.thermal_state = inputs;
+                let features = straightness_features(&inputs);
                 for (estimator, out) in [
                     (&axis.straightness_h, &mut e.straightness_h_um),
                     (&axis.straightness_v, &mut e.straightness_v_um),
                 ] {
                     if let Some(estimator) = estimator {
                         e.nodes = estimator.nodes();
-                        estimator.update(&inputs, out);
+                        estimator.update(&features, out);
                     }
                 }
             }

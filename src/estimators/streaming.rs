@@ -73,10 +73,9 @@ impl HeatAccumulator {
     /// Adds one sample of heat input `current` over `dt` seconds; returns the accumulated heat.
     #[inline]
     pub fn update(&mut self, current: f64, dt: f64) -> f64 {
-        // False while the cache is NaN, so that the first step computes its factor; an
-        // infinite cached step would take every later step for itself.
-        let same_step =
-            self.cached_dt.is_finite() && (dt - self.cached_dt).abs() <= SAME_STEP * self.cached_dt;
+        // Strict, so that neither a NaN cache (the first step) nor an infinite one (∞ < ∞
+        // fails) takes a later step for its own; a zero step then recomputes its zero factor.
+        let same_step = (dt - self.cached_dt).abs() < SAME_STEP * self.cached_dt;
         if !same_step {
             self.cached_dt = dt;
             self.cached_factor = if dt > 0.0 {
@@ -497,11 +496,12 @@ pub struct StraightnessInputs {
 }
 
 /// Number of [`STRAIGHTNESS_FEATURES`].
-const STRAIGHTNESS_FEATURE_COUNT: usize = STRAIGHTNESS_FEATURES.len();
+pub const STRAIGHTNESS_FEATURE_COUNT: usize = STRAIGHTNESS_FEATURES.len();
 
-/// The values of [`STRAIGHTNESS_FEATURES`], in its order, from what the models read.
+/// The values of [`STRAIGHTNESS_FEATURES`], in its order, from what the models read: built
+/// once per axis and frame, and read by both directions' [`StraightnessEstimator`]s.
 #[inline]
-fn straightness_features(inputs: &StraightnessInputs) -> [f64; STRAIGHTNESS_FEATURE_COUNT] {
+pub fn straightness_features(inputs: &StraightnessInputs) -> [f64; STRAIGHTNESS_FEATURE_COUNT] {
     let i = inputs;
     let (f2, b2, m2) = (
         i.front_C * i.front_C,
@@ -576,12 +576,12 @@ impl StraightnessEstimator {
         })
     }
 
-    /// Fills `out` with each node's deviation, µm. The ISO 1101 value is a pure function of
-    /// these and is computed when read ([`minimum_zone_straightness`]), not on every frame.
+    /// Fills `out` with each node's deviation, µm, from the frame's
+    /// [`straightness_features`]. The ISO 1101 value is a pure function of these and is
+    /// computed when read ([`minimum_zone_straightness`]), not on every frame.
     #[inline]
-    pub fn update(&self, inputs: &StraightnessInputs, out: &mut [f64; MAX_NODES]) {
-        self.nodes
-            .eval_shared(&straightness_features(inputs), out.as_mut_slice());
+    pub fn update(&self, features: &[f64; STRAIGHTNESS_FEATURE_COUNT], out: &mut [f64; MAX_NODES]) {
+        self.nodes.eval_shared(features, out.as_mut_slice());
     }
 
     /// True if a node's model reads a feature whose name starts with `prefix` (to check that
@@ -860,8 +860,8 @@ mod tests {
         for seed in 0..20 {
             let inputs = straightness_inputs(seed as f64);
             let mut out = [-999.0; MAX_NODES];
-            estimator.update(&inputs, &mut out);
             let features = straightness_features(&inputs);
+            estimator.update(&features, &mut out);
             for (k, model) in bound.iter().enumerate() {
                 let own = model.eval(&features);
                 assert_eq!(out[k].to_bits(), own.to_bits(), "node {}", k + 1);
@@ -884,11 +884,11 @@ mod tests {
         let estimator = StraightnessEstimator::new(&models, &[0.0, 100.0]).expect("binds");
         let mut inputs = straightness_inputs(1.0);
         let mut out = [f64::NAN; MAX_NODES];
-        estimator.update(&inputs, &mut out);
+        estimator.update(&straightness_features(&inputs), &mut out);
         assert!(out[0].is_finite() && out[1].is_finite());
         for missing in [f64::NAN, f64::INFINITY] {
             inputs.nut_C = missing;
-            estimator.update(&inputs, &mut out);
+            estimator.update(&straightness_features(&inputs), &mut out);
             assert!(!out[0].is_finite());
             assert_eq!(out[1], 1.0 + 0.5 * inputs.front_C);
         }
