@@ -30,8 +30,8 @@ use super::abnormality::{self, TorqueBlock};
 use super::models::{
     AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
     BED_LAG_TAUS_S, COOLANT_LAG_FEATURES, Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES,
-    ElongationModel, HeatModel, IDEAL_TORQUE_FEATURES, LinearModel, STATOR_LAG_FEATURES,
-    STATOR_LAG_TAUS_S,
+    ElongationModel, FAST_HEAT_DIVISOR, FAST_HEAT_FEATURES, HeatModel, IDEAL_TORQUE_FEATURES,
+    LinearModel, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
@@ -1252,6 +1252,18 @@ fn fit_heat_model(
                 };
                 let heat = ("heat".to_string(), accumulated(|i| i.drag));
                 let load_heat = ("load_heat".to_string(), accumulated(|i| i.load));
+                let fast = |name: &str, input: fn(&HeatInputs) -> f64| {
+                    let series: Vec<f64> = inputs.iter().map(input).collect();
+                    (
+                        name.to_string(),
+                        accumulate(r.time(), &series, tau / FAST_HEAT_DIVISOR),
+                    )
+                };
+                let [heat_fast, load_heat_fast] = FAST_HEAT_FEATURES;
+                let fast_heat = [
+                    fast(heat_fast, |i| i.drag),
+                    fast(load_heat_fast, |i| i.load),
+                ];
                 let churning_heat = ("churning_heat".to_string(), accumulated(|i| i.churning));
                 let stator = ("stator".to_string(), stator);
                 let mut candidates = Vec::new();
@@ -1266,7 +1278,8 @@ fn fit_heat_model(
                     ],
                 ] {
                     // The fullest variant (the last) again with the surroundings: the stator's
-                    // lags, then also the coolant's where it is offered.
+                    // lags, then also the coolant's where it is offered; the fullest of those
+                    // again with the fast heat.
                     let variants = with_room_and_lag_variants(base, r, fit.has_ambient)?;
                     let surrounded = variants.last().map(|fullest| {
                         let with_stator = [fullest.as_slice(), &surroundings.stator].concat();
@@ -1276,8 +1289,11 @@ fn fit_heat_model(
                     });
                     candidates.extend(variants);
                     if let Some((with_stator, with_coolant)) = surrounded {
+                        let surrounded_most = with_coolant.as_ref().unwrap_or(&with_stator);
+                        let with_fast = [surrounded_most.as_slice(), &fast_heat].concat();
                         candidates.push(with_stator);
                         candidates.extend(with_coolant);
+                        candidates.push(with_fast);
                     }
                 }
                 Ok(candidates)
@@ -1300,7 +1316,7 @@ fn fit_heat_model(
     let rate = database[0].sample_rate_hz().unwrap_or(1.0);
     let mut report = fitted.report;
     report.equation = format!(
-        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag), n·|τ| (load) and |n|^(5/3) (churning), τ = {tau} s",
+        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag), n·|τ| (load) and |n|^(5/3) (churning), τ = {tau} s (the `_fast` terms: τ/{FAST_HEAT_DIVISOR})",
         report.equation
     );
     Ok((

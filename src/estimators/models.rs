@@ -43,8 +43,9 @@ pub const RATIO_FEATURES: &[&str] = &["const", "torque", "torque^2", "torque^3"]
 /// calibration may choose, the part's surroundings: the stator through the lags of
 /// [`STATOR_LAG_TAUS_S`] (the motor's heat reaches a bearing late, through the flange, the bed
 /// and the screw) and the coolant's on/off state through the lags of [`BED_LAG_TAUS_S`] (the
-/// coolant washes the bed the bearings sit on, which passes its cooling on slowly). A fitted
-/// model uses a subset.
+/// coolant washes the bed the bearings sit on, which passes its cooling on slowly), and the
+/// drag and load heat accumulated again over τ / [`FAST_HEAT_DIVISOR`] ([`FAST_HEAT_FEATURES`]).
+/// A fitted model uses a subset.
 pub const HEAT_FEATURES: &[&str] = &[
     "const",
     "stator",
@@ -52,6 +53,8 @@ pub const HEAT_FEATURES: &[&str] = &[
     "heat",
     "load_heat",
     "churning_heat",
+    "heat_fast",
+    "load_heat_fast",
     "ambient_lag_30min",
     "ambient_lag_90min",
     "ambient_lag_270min",
@@ -61,6 +64,16 @@ pub const HEAT_FEATURES: &[&str] = &[
     "coolant_lag_30min",
     "coolant_lag_90min",
 ];
+/// The drag and load heat of [`HEAT_FEATURES`] accumulated a second time, over
+/// τ / [`FAST_HEAT_DIVISOR`]. A part's heat reaches it through more than one mass: the rolling
+/// elements and rings warm within minutes, the housing and the bed they sit in over the part's
+/// τ. With one τ the fit must split the difference; with a second, four times faster, the
+/// estimates on unseen production days err 2–7 % less on the front bearing, 9–17 % less on the
+/// back bearing and 11–20 % less on the nut (a prototype on database seed 1, days 7 and 8;
+/// docs/accuracy.md).
+pub const FAST_HEAT_FEATURES: [&str; 2] = ["heat_fast", "load_heat_fast"];
+/// τ of [`FAST_HEAT_FEATURES`] is the part's τ divided by this.
+pub const FAST_HEAT_DIVISOR: f64 = 4.0;
 /// The coolant features of [`HEAT_FEATURES`] and [`STRAIGHTNESS_FEATURES`]: its on/off state
 /// through each lag of [`BED_LAG_TAUS_S`].
 pub const COOLANT_LAG_FEATURES: [&str; 2] = ["coolant_lag_30min", "coolant_lag_90min"];
@@ -612,6 +625,7 @@ mod tests {
             STATOR_LAG_FEATURES
         );
         assert_eq!(HEAT_FEATURES[heat_lags + 6..], COOLANT_LAG_FEATURES);
+        assert_eq!(HEAT_FEATURES[heat_lags - 2..heat_lags], FAST_HEAT_FEATURES);
         assert_eq!(BED_LAG_FEATURES[5..], COOLANT_LAG_FEATURES);
         let bed = STRAIGHTNESS_FEATURES.len() - BED_LAG_FEATURES.len();
         assert_eq!(STRAIGHTNESS_FEATURES[bed..], BED_LAG_FEATURES);

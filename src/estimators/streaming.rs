@@ -7,8 +7,8 @@
 
 use super::models::{
     AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
-    FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels, LinearModel, RATIO_FEATURES,
-    STRAIGHTNESS_FEATURES,
+    FAST_HEAT_DIVISOR, FAST_HEAT_FEATURES, FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels,
+    LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
 };
 
 /// rpm → rad/s.
@@ -316,12 +316,16 @@ impl TorqueSplitEstimator {
 /// a sampler that is not locked to the program's cycle sees each phase of it equally often,
 /// and the accumulation averages it out. (The encoder's travel over the interval, used
 /// before, is blind to a move and its return within one interval and makes |n|^(5/3) of an
-/// average speed, which understates a rapid's churning.)
+/// average speed, which understates a rapid's churning.) The drag and load heat are also
+/// accumulated over τ / [`FAST_HEAT_DIVISOR`] when the model reads them
+/// ([`FAST_HEAT_FEATURES`]).
 #[derive(Debug, Clone)]
 pub struct ComponentThermalEstimator {
     heat: HeatAccumulator,
     load_heat: HeatAccumulator,
     churning_heat: HeatAccumulator,
+    /// The drag and load heat over the fast τ, only where the model reads either.
+    fast_heat: Option<[HeatAccumulator; 2]>,
     model: BoundModel,
 }
 
@@ -329,11 +333,23 @@ impl ComponentThermalEstimator {
     /// Binds a fitted heat model. The accumulators use the model's τ, which is what rescales
     /// C_BH to the live sample rate.
     pub fn new(model: &HeatModel) -> Result<Self, String> {
+        let bound = BoundModel::bind(&model.temperature, HEAT_FEATURES)?;
+        let reads_fast = HEAT_FEATURES
+            .iter()
+            .enumerate()
+            .any(|(index, name)| FAST_HEAT_FEATURES.contains(name) && bound.uses(index));
+        let fast_tau_s = model.tau_s / FAST_HEAT_DIVISOR;
         Ok(ComponentThermalEstimator {
             heat: HeatAccumulator::new(model.tau_s),
             load_heat: HeatAccumulator::new(model.tau_s),
             churning_heat: HeatAccumulator::new(model.tau_s),
-            model: BoundModel::bind(&model.temperature, HEAT_FEATURES)?,
+            fast_heat: reads_fast.then(|| {
+                [
+                    HeatAccumulator::new(fast_tau_s),
+                    HeatAccumulator::new(fast_tau_s),
+                ]
+            }),
+            model: bound,
         })
     }
 
@@ -351,6 +367,11 @@ impl ComponentThermalEstimator {
         let h = self.heat.update(inputs.drag, dt);
         let l = self.load_heat.update(inputs.load, dt);
         let c = self.churning_heat.update(inputs.churning, dt);
+        let [h_fast, l_fast] = match &mut self.fast_heat {
+            Some([drag, load]) => [drag.update(inputs.drag, dt), load.update(inputs.load, dt)],
+            // Not read by the model: its coefficients there are zero.
+            None => [0.0; 2],
+        };
         let s = surroundings;
         let [room_30, room_90, room_270] = s.room.lags_C;
         let [stator_5, stator_15, stator_45] = s.stator_lags_C;
@@ -362,6 +383,8 @@ impl ComponentThermalEstimator {
             h,
             l,
             c,
+            h_fast,
+            l_fast,
             room_30,
             room_90,
             room_270,
@@ -1085,6 +1108,47 @@ mod tests {
         proptest!(|(x in proptest::num::f64::NORMAL)| {
             prop_assert!(within_two_ulp(x), "{} against {}", cube_root(x), x.cbrt());
         });
+    }
+
+    /// A model that reads the fast heat accumulates the drag and load heat over τ/4 beside τ:
+    /// after ten minutes of steady running each follows its own closed form.
+    #[test]
+    fn a_part_reads_its_heat_over_a_second_faster_time_constant() {
+        let model = HeatModel {
+            tau_s: 1200.0,
+            c_bh: HeatAccumulator::c_bh_at_rate(1200.0, 1.0),
+            temperature: LinearModel::with_terms(
+                &["const", "heat", "heat_fast", "load_heat_fast"],
+                &[20.0, 1.0, 2.0, 3.0],
+            ),
+        };
+        let mut part = ComponentThermalEstimator::new(&model).unwrap();
+        let mut room = RoomLags::default();
+        let surroundings = ThermalSurroundings {
+            stator_C: 25.0,
+            stator_lags_C: [25.0; 3],
+            room: room.update(20.0, 0.0),
+            coolant_lags: [f64::NAN; 2],
+        };
+        let speed = SpeedHeat::of(1000.0);
+        let load = heat_inputs(2.0, &speed).load;
+        let mut last = f64::NAN;
+        for _ in 0..600 {
+            last = part.update(2.0, &speed, &surroundings, 1.0);
+        }
+        let reached = |tau: f64| 1.0 - (-600.0 / tau).exp();
+        let expected = 20.0 + reached(1200.0) + 2.0 * reached(300.0) + 3.0 * load * reached(300.0);
+        assert!((last - expected).abs() < 1e-9, "{last} against {expected}");
+        // Without the fast terms the same heat reaches the model over τ alone.
+        let slow_only = HeatModel {
+            temperature: LinearModel::with_terms(&["const", "heat"], &[20.0, 1.0]),
+            ..model
+        };
+        let mut part = ComponentThermalEstimator::new(&slow_only).unwrap();
+        for _ in 0..600 {
+            last = part.update(2.0, &speed, &surroundings, 1.0);
+        }
+        assert!((last - (20.0 + reached(1200.0))).abs() < 1e-9, "{last}");
     }
 
     #[test]
