@@ -1203,8 +1203,9 @@ struct HeatFit<'a> {
 /// Eqs. 9–12 for one component: T = c0 + c_SB·T_stator + c_H·H(τ), optionally with the load
 /// heat c_L·H_load(τ) and the churning heat c_C·H_churning(τ), with the room c_room·T_room and
 /// the room through the lags of `AMBIENT_LAG_TAUS_S`, and with the part's surroundings (the
-/// stator's lags, then also the coolant's: [`SurroundingsColumns`]); τ and the optional terms
-/// are chosen on the experiments (or by blocked cross-validation).
+/// stator's lags, then also the coolant's: [`SurroundingsColumns`]), the most surrounded of
+/// each form once more with the drag and load heat over τ / [`FAST_HEAT_DIVISOR`]; τ and the
+/// optional terms are chosen on the experiments (or by blocked cross-validation).
 fn fit_heat_model(
     fit: HeatFit<'_>,
     database: &[Recording],
@@ -1246,25 +1247,19 @@ fn fit_heat_model(
                     }
                 };
                 let stator = r.column_for(&stator_name, &estimate)?.to_vec();
-                let accumulated = |input: fn(&HeatInputs) -> f64| {
+                let accumulated = |name: &str, input: fn(&HeatInputs) -> f64, tau: f64| {
                     let series: Vec<f64> = inputs.iter().map(input).collect();
-                    accumulate(r.time(), &series, tau)
+                    (name.to_string(), accumulate(r.time(), &series, tau))
                 };
-                let heat = ("heat".to_string(), accumulated(|i| i.drag));
-                let load_heat = ("load_heat".to_string(), accumulated(|i| i.load));
-                let fast = |name: &str, input: fn(&HeatInputs) -> f64| {
-                    let series: Vec<f64> = inputs.iter().map(input).collect();
-                    (
-                        name.to_string(),
-                        accumulate(r.time(), &series, tau / FAST_HEAT_DIVISOR),
-                    )
-                };
+                let heat = accumulated("heat", |i| i.drag, tau);
+                let load_heat = accumulated("load_heat", |i| i.load, tau);
+                let churning_heat = accumulated("churning_heat", |i| i.churning, tau);
                 let [heat_fast, load_heat_fast] = FAST_HEAT_FEATURES;
+                let fast_tau = tau / FAST_HEAT_DIVISOR;
                 let fast_heat = [
-                    fast(heat_fast, |i| i.drag),
-                    fast(load_heat_fast, |i| i.load),
+                    accumulated(heat_fast, |i| i.drag, fast_tau),
+                    accumulated(load_heat_fast, |i| i.load, fast_tau),
                 ];
-                let churning_heat = ("churning_heat".to_string(), accumulated(|i| i.churning));
                 let stator = ("stator".to_string(), stator);
                 let mut candidates = Vec::new();
                 for base in [
@@ -1278,8 +1273,8 @@ fn fit_heat_model(
                     ],
                 ] {
                     // The fullest variant (the last) again with the surroundings: the stator's
-                    // lags, then also the coolant's where it is offered; the fullest of those
-                    // again with the fast heat.
+                    // lags, then also the coolant's where it is offered; the most surrounded
+                    // of those again with the heat over τ/4.
                     let variants = with_room_and_lag_variants(base, r, fit.has_ambient)?;
                     let surrounded = variants.last().map(|fullest| {
                         let with_stator = [fullest.as_slice(), &surroundings.stator].concat();
@@ -1315,8 +1310,16 @@ fn fit_heat_model(
     })?;
     let rate = database[0].sample_rate_hz().unwrap_or(1.0);
     let mut report = fitted.report;
+    let reads_fast = FAST_HEAT_FEATURES
+        .iter()
+        .any(|name| fitted.model.terms.iter().any(|term| term == name));
+    let fast_note = if reads_fast {
+        format!(" (the `_quarter_tau` terms over τ/{FAST_HEAT_DIVISOR})")
+    } else {
+        String::new()
+    };
     report.equation = format!(
-        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag), n·|τ| (load) and |n|^(5/3) (churning), τ = {tau} s (the `_fast` terms: τ/{FAST_HEAT_DIVISOR})",
+        "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag), n·|τ| (load) and |n|^(5/3) (churning), τ = {tau} s{fast_note}",
         report.equation
     );
     Ok((

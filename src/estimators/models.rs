@@ -53,8 +53,8 @@ pub const HEAT_FEATURES: &[&str] = &[
     "heat",
     "load_heat",
     "churning_heat",
-    "heat_fast",
-    "load_heat_fast",
+    "heat_quarter_tau",
+    "load_heat_quarter_tau",
     "ambient_lag_30min",
     "ambient_lag_90min",
     "ambient_lag_270min",
@@ -66,13 +66,12 @@ pub const HEAT_FEATURES: &[&str] = &[
 ];
 /// The drag and load heat of [`HEAT_FEATURES`] accumulated a second time, over
 /// τ / [`FAST_HEAT_DIVISOR`]. A part's heat reaches it through more than one mass: the rolling
-/// elements and rings warm within minutes, the housing and the bed they sit in over the part's
-/// τ. With one τ the fit must split the difference; with a second, four times faster, the
-/// estimates on unseen production days err 2–7 % less on the front bearing, 9–17 % less on the
-/// back bearing and 11–20 % less on the nut (a prototype on database seed 1, days 7 and 8;
-/// docs/accuracy.md).
-pub const FAST_HEAT_FEATURES: [&str; 2] = ["heat_fast", "load_heat_fast"];
-/// τ of [`FAST_HEAT_FEATURES`] is the part's τ divided by this.
+/// elements, rings and nut warm within minutes, the housing and the bed they sit in over the
+/// part's τ, which one accumulation cannot follow both of (docs/accuracy.md, *A part's heat
+/// arrives over two time constants*). Named for the divisor, so a profile's term keeps its
+/// meaning (the elongation's `heat_fast` is another quantity, over its own `fast_tau_s`).
+pub const FAST_HEAT_FEATURES: [&str; 2] = ["heat_quarter_tau", "load_heat_quarter_tau"];
+/// τ of [`FAST_HEAT_FEATURES`] is the part's τ divided by this (the features' names say it).
 pub const FAST_HEAT_DIVISOR: f64 = 4.0;
 /// The coolant features of [`HEAT_FEATURES`] and [`STRAIGHTNESS_FEATURES`]: its on/off state
 /// through each lag of [`BED_LAG_TAUS_S`].
@@ -257,8 +256,9 @@ impl LinearModel {
 }
 
 /// A heat-accumulation model (Eqs. 10–12): H ← H(1 − C_BH) + C_BH·H′ for each heat input H′
-/// (drag ∝ |n|, load ∝ |τ·n|, churning ∝ |n|^(5/3), all with the one τ), then a linear model
-/// over `HEAT_FEATURES`.
+/// (drag ∝ |n|, load ∝ |τ·n|, churning ∝ |n|^(5/3), all with the one τ, and the drag and load
+/// again over τ / [`FAST_HEAT_DIVISOR`] where the model reads [`FAST_HEAT_FEATURES`]), then a
+/// linear model over `HEAT_FEATURES`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HeatModel {
@@ -607,7 +607,7 @@ mod tests {
     use super::*;
 
     /// The estimators pass the room, stator and coolant lags as the last eight features of
-    /// the heat vector and the room lags, followed by the bed's state, as the last of the
+    /// the heat vector, the heat over τ/4 just before them, and the room lags, followed by the bed's state, as the last of the
     /// straightness vector, in the order of `AMBIENT_LAG_TAUS_S`, `STATOR_LAG_TAUS_S` and
     /// `BED_LAG_TAUS_S`; the names there must be the same, or a fitted lag would bind to the
     /// wrong value.

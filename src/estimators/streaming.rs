@@ -330,8 +330,8 @@ pub struct ComponentThermalEstimator {
 }
 
 impl ComponentThermalEstimator {
-    /// Binds a fitted heat model. The accumulators use the model's τ, which is what rescales
-    /// C_BH to the live sample rate.
+    /// Binds a fitted heat model. The accumulators use the model's τ (the fast ones τ /
+    /// [`FAST_HEAT_DIVISOR`]), which is what rescales C_BH to the live sample rate.
     pub fn new(model: &HeatModel) -> Result<Self, String> {
         let bound = BoundModel::bind(&model.temperature, HEAT_FEATURES)?;
         let reads_fast = HEAT_FEATURES
@@ -369,14 +369,15 @@ impl ComponentThermalEstimator {
         let c = self.churning_heat.update(inputs.churning, dt);
         let [h_fast, l_fast] = match &mut self.fast_heat {
             Some([drag, load]) => [drag.update(inputs.drag, dt), load.update(inputs.load, dt)],
-            // Not read by the model: its coefficients there are zero.
+            // The model has no such terms and never reads these slots.
             None => [0.0; 2],
         };
         let s = surroundings;
         let [room_30, room_90, room_270] = s.room.lags_C;
         let [stator_5, stator_15, stator_45] = s.stator_lags_C;
         let [coolant_30, coolant_90] = s.coolant_lags;
-        self.model.eval(&[
+        // Typed to the feature list's length, so a feature added there fails to compile here.
+        let features: [f64; HEAT_FEATURES.len()] = [
             1.0,
             s.stator_C,
             s.room.ambient_C,
@@ -393,7 +394,8 @@ impl ComponentThermalEstimator {
             stator_45,
             coolant_30,
             coolant_90,
-        ])
+        ];
+        self.model.eval(&features)
     }
 
     /// True if the model reads a feature whose name starts with `prefix` (to check that the
@@ -1118,7 +1120,7 @@ mod tests {
             tau_s: 1200.0,
             c_bh: HeatAccumulator::c_bh_at_rate(1200.0, 1.0),
             temperature: LinearModel::with_terms(
-                &["const", "heat", "heat_fast", "load_heat_fast"],
+                &["const", "heat", "heat_quarter_tau", "load_heat_quarter_tau"],
                 &[20.0, 1.0, 2.0, 3.0],
             ),
         };
