@@ -1309,11 +1309,13 @@ fn fit_heat_model(
         message: "no time constant could be fitted".into(),
     })?;
     let rate = database[0].sample_rate_hz().unwrap_or(1.0);
+    let model = HeatModel {
+        tau_s: tau,
+        c_bh: HeatAccumulator::c_bh_at_rate(tau, rate),
+        temperature: fitted.model,
+    };
     let mut report = fitted.report;
-    let reads_fast = FAST_HEAT_FEATURES
-        .iter()
-        .any(|name| fitted.model.terms.iter().any(|term| term == name));
-    let fast_note = if reads_fast {
+    let fast_note = if model.reads_fast_heat() {
         format!(" (the `_quarter_tau` terms over τ/{FAST_HEAT_DIVISOR})")
     } else {
         String::new()
@@ -1322,14 +1324,7 @@ fn fit_heat_model(
         "{}; H ← H(1 − C_BH) + C_BH·H′ with H′ ∝ n (drag), n·|τ| (load) and |n|^(5/3) (churning), τ = {tau} s{fast_note}",
         report.equation
     );
-    Ok((
-        HeatModel {
-            tau_s: tau,
-            c_bh: HeatAccumulator::c_bh_at_rate(tau, rate),
-            temperature: fitted.model,
-        },
-        report,
-    ))
+    Ok((model, report))
 }
 
 /// Eq. 15 for a spindle: ΔT_stator, speed and load plus heat accumulated from the speed

@@ -270,6 +270,17 @@ pub struct HeatModel {
     pub temperature: LinearModel,
 }
 
+impl HeatModel {
+    /// True if the temperature model reads the heat over τ / [`FAST_HEAT_DIVISOR`]
+    /// ([`FAST_HEAT_FEATURES`]), which is then accumulated too.
+    pub fn reads_fast_heat(&self) -> bool {
+        let terms = &self.temperature.terms;
+        FAST_HEAT_FEATURES
+            .iter()
+            .any(|name| terms.iter().any(|term| term == name))
+    }
+}
+
 /// The spindle elongation model: time constants of the heat terms and the linear model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -607,8 +618,8 @@ mod tests {
     use super::*;
 
     /// The estimators pass the room, stator and coolant lags as the last eight features of
-    /// the heat vector, the heat over τ/4 just before them, and the room lags, followed by the bed's state, as the last of the
-    /// straightness vector, in the order of `AMBIENT_LAG_TAUS_S`, `STATOR_LAG_TAUS_S` and
+    /// the heat vector, the heat over τ/4 just before them, and the room lags, followed by the
+    /// bed's state, as the last of the straightness vector, in the order of `AMBIENT_LAG_TAUS_S`, `STATOR_LAG_TAUS_S` and
     /// `BED_LAG_TAUS_S`; the names there must be the same, or a fitted lag would bind to the
     /// wrong value.
     #[test]

@@ -7,8 +7,8 @@
 
 use super::models::{
     AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
-    FAST_HEAT_DIVISOR, FAST_HEAT_FEATURES, FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels,
-    LinearModel, RATIO_FEATURES, STRAIGHTNESS_FEATURES,
+    FAST_HEAT_DIVISOR, FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels, LinearModel,
+    RATIO_FEATURES, STRAIGHTNESS_FEATURES,
 };
 
 /// rpm → rad/s.
@@ -318,7 +318,7 @@ impl TorqueSplitEstimator {
 /// before, is blind to a move and its return within one interval and makes |n|^(5/3) of an
 /// average speed, which understates a rapid's churning.) The drag and load heat are also
 /// accumulated over τ / [`FAST_HEAT_DIVISOR`] when the model reads them
-/// ([`FAST_HEAT_FEATURES`]).
+/// ([`FAST_HEAT_FEATURES`](super::models::FAST_HEAT_FEATURES)).
 #[derive(Debug, Clone)]
 pub struct ComponentThermalEstimator {
     heat: HeatAccumulator,
@@ -334,10 +334,7 @@ impl ComponentThermalEstimator {
     /// [`FAST_HEAT_DIVISOR`]), which is what rescales C_BH to the live sample rate.
     pub fn new(model: &HeatModel) -> Result<Self, String> {
         let bound = BoundModel::bind(&model.temperature, HEAT_FEATURES)?;
-        let reads_fast = HEAT_FEATURES
-            .iter()
-            .enumerate()
-            .any(|(index, name)| FAST_HEAT_FEATURES.contains(name) && bound.uses(index));
+        let reads_fast = model.reads_fast_heat();
         let fast_tau_s = model.tau_s / FAST_HEAT_DIVISOR;
         Ok(ComponentThermalEstimator {
             heat: HeatAccumulator::new(model.tau_s),
