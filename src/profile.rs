@@ -618,5 +618,18 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("axes.X.screw.lead_mm"), "{err}");
+        // A warm start that would start a part with negative or undefined heat.
+        let shipped = include_str!("../assets/it25-twin.toml");
+        for bad in ["-0.1", "nan", "inf"] {
+            let text = shipped.replacen("\nheat_per_K = ", &format!("\nheat_per_K = {bad} # "), 1);
+            let err = MachineProfile::from_toml(&text, "p.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("calibration.axes.X.front_bearing_temp.warm_start")
+                    && err.contains("non-negative number"),
+                "{bad}: {err}"
+            );
+        }
     }
 }

@@ -675,3 +675,103 @@ fn a_dry_shop_with_a_steady_room_calibrates_without_coolant_or_room_terms() {
         stdout(&run)
     );
 }
+
+/// A recording that starts mid-shift, on a machine that has run for an hour and a half, reads
+/// the bearings and the nut from its first row: the shipped profile's warm start seeds their
+/// heat from the stator's excess over the room (docs/accuracy.md, *A recording that starts
+/// mid-shift*), and the report says so. The same profile without its warm start starts them
+/// at rest, reads them low for an hour or more, and says that instead.
+#[test]
+fn a_recording_that_starts_mid_shift_reads_warm_parts_from_its_first_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let shift = simulate(
+        dir.path(),
+        "shift.csv",
+        &["--scenario", "production", "--hours", "4", "--seed", "11"],
+    );
+    let text = std::fs::read_to_string(&shift).unwrap();
+    let mut past_header = false;
+    let from_mid_shift: String = text
+        .lines()
+        .filter(|line| {
+            let keep = line.starts_with('#')
+                || !past_header
+                || line
+                    .split(',')
+                    .next()
+                    .is_some_and(|t| t.parse::<f64>().unwrap() >= 5400.0);
+            past_header |= line.starts_with("time_s");
+            keep
+        })
+        .map(|line| format!("{line}\n"))
+        .collect();
+    let recording = dir.path().join("from-mid-shift.csv");
+    std::fs::write(&recording, from_mid_shift).unwrap();
+    let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+    let profile_text = std::fs::read_to_string(&shipped).unwrap();
+    // The shipped profile as calibrated before warm starts existed: every `warm_start` table
+    // (its header and its key lines) removed.
+    let mut in_warm_start = false;
+    let without_warm_start: String = profile_text
+        .lines()
+        .filter(|line| {
+            if line.starts_with('[') {
+                in_warm_start = line.ends_with(".warm_start]");
+            }
+            !in_warm_start
+        })
+        .map(|line| format!("{line}\n"))
+        .collect();
+    assert_eq!(profile_text.matches(".warm_start]").count(), 3);
+    assert!(!without_warm_start.contains("warm_start"));
+    let cold_profile = dir.path().join("cold.toml");
+    std::fs::write(&cold_profile, without_warm_start).unwrap();
+    let run = |profile: &std::path::Path| {
+        let json = dir.path().join("accuracy.json");
+        let out = servosight(&[
+            "estimate",
+            "--profile",
+            arg(profile),
+            "--recording",
+            arg(&recording),
+            "--json",
+            arg(&json),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let r2 = |id: &str| {
+            report["accuracy"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|row| row["estimate"] == id)
+                .and_then(|row| row["r2"].as_f64())
+                .unwrap()
+        };
+        let parts = ["front_bearing_temp", "back_bearing_temp", "nut_temp"].map(r2);
+        let notes: Vec<String> = report["notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_str().unwrap().to_string())
+            .collect();
+        (parts, notes.join("\n"))
+    };
+    let ([front, back, nut], notes) = run(&shipped);
+    assert!(
+        front >= 0.95 && back >= 0.9 && nut >= 0.95,
+        "warm start: front {front}, back {back}, nut {nut}"
+    );
+    assert!(
+        notes.contains("X: the machine was warm at the first frame")
+            && notes.contains("the profile's warm start"),
+        "{notes}"
+    );
+    let ([front, back, nut], notes) = run(&cold_profile);
+    assert!(
+        front < 0.6 && back < 0.6 && nut < 0.6,
+        "at rest: front {front}, back {back}, nut {nut}"
+    );
+    assert!(notes.contains("the profile has no warm start"), "{notes}");
+}

@@ -357,3 +357,56 @@ fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
         );
     }
 }
+
+/// An HMI session that connects to a machine already warm (here a replay whose first frame
+/// has the X stator 2 K above the room) says, once the first frame has arrived, that the
+/// bearing and nut heat started from the profile's warm start: the estimates of the first
+/// hour are a seed's, not the parts' own heat.
+#[test]
+fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
+    use servosight::link::register_map;
+    use servosight::signal::channel::AMBIENT;
+    use servosight::ui::SourceSpec;
+    use servosight::ui::session::SessionUpdate;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("warm.csv");
+    let names = register_map::sample_columns();
+    let rows: Vec<String> = (0..5)
+        .map(|t| {
+            let row: Vec<String> = names
+                .iter()
+                .enumerate()
+                .map(|(i, name)| match name.as_str() {
+                    _ if i == 0 => t.to_string(),
+                    "X.stator_temp_C" => "24".to_string(),
+                    name if name == AMBIENT => "22".to_string(),
+                    _ => "1".to_string(),
+                })
+                .collect();
+            row.join(",")
+        })
+        .collect();
+    std::fs::write(&path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
+    let mut session = twin_profile_session(
+        dir.path(),
+        SourceSpec::Replay {
+            path,
+            options: ReplayOptions::default(),
+        },
+    );
+    let said =
+        "estimators: X: the machine was warm at the first frame (stator 2.0 K above the room)";
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut events = Vec::new();
+    while Instant::now() < deadline && !events.iter().any(|e: &String| e.contains(said)) {
+        while let Some(update) = session.try_recv() {
+            if let SessionUpdate::Event(event) = update {
+                events.push(format!("{event:?}"));
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let warm: Vec<&String> = events.iter().filter(|e| e.contains(said)).collect();
+    assert_eq!(warm.len(), 1, "said once: {events:?}");
+    assert!(warm[0].contains("the profile's warm start"), "{}", warm[0]);
+}

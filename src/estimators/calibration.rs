@@ -31,7 +31,7 @@ use super::models::{
     AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
     BED_LAG_TAUS_S, COOLANT_LAG_FEATURES, Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES,
     ElongationModel, FAST_HEAT_DIVISOR, FAST_HEAT_FEATURES, HeatModel, IDEAL_TORQUE_FEATURES,
-    LinearModel, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S,
+    LinearModel, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S, WarmStart,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
@@ -1309,10 +1309,18 @@ fn fit_heat_model(
         message: "no time constant could be fitted".into(),
     })?;
     let rate = database[0].sample_rate_hz().unwrap_or(1.0);
+    let warm_start = if fit.has_ambient {
+        let recordings = database.iter().zip(&db_inputs);
+        let recordings = recordings.chain(experiments.iter().zip(&experiment_inputs));
+        fit_warm_start(recordings, &stator_name, tau, &estimate)?
+    } else {
+        None
+    };
     let model = HeatModel {
         tau_s: tau,
         c_bh: HeatAccumulator::c_bh_at_rate(tau, rate),
         temperature: fitted.model,
+        warm_start,
     };
     let mut report = fitted.report;
     let fast_note = if model.reads_fast_heat() {
@@ -1325,6 +1333,59 @@ fn fit_heat_model(
         report.equation
     );
     Ok((model, report))
+}
+
+/// A part's [`WarmStart`]: each of its accumulations at `tau_s` (the drag and load heat also
+/// at τ / [`FAST_HEAT_DIVISOR`]) over the calibration recordings, fitted through the origin on
+/// the stator's excess over the room as [`WarmStart::counted_excess`] counts it. None where the
+/// stator never rose past the floor: the recordings then say nothing about a warm machine.
+fn fit_warm_start<'a>(
+    recordings: impl Iterator<Item = (&'a Recording, &'a Vec<HeatInputs>)>,
+    stator: &str,
+    tau_s: f64,
+    purpose: &str,
+) -> Result<Option<WarmStart>, CalibrationError> {
+    type Input = fn(&HeatInputs) -> f64;
+    let accumulations: [(Input, f64); 5] = [
+        (|i| i.drag, tau_s),
+        (|i| i.load, tau_s),
+        (|i| i.churning, tau_s),
+        (|i| i.drag, tau_s / FAST_HEAT_DIVISOR),
+        (|i| i.load, tau_s / FAST_HEAT_DIVISOR),
+    ];
+    let (mut excess_squared, mut cross) = (0.0, [0.0; 5]);
+    for (recording, inputs) in recordings {
+        let stator = recording.column_for(stator, purpose)?;
+        let room = recording.column_for(AMBIENT, purpose)?;
+        let excess: Vec<f64> = stator
+            .iter()
+            .zip(room)
+            .map(|(s, r)| WarmStart::counted_excess(s - r))
+            .collect();
+        excess_squared += excess.iter().map(|e| e * e).sum::<f64>();
+        for ((input, tau), sum) in accumulations.iter().zip(&mut cross) {
+            let series: Vec<f64> = inputs.iter().map(input).collect();
+            let accumulated = accumulate(recording.time(), &series, *tau);
+            *sum += excess
+                .iter()
+                .zip(&accumulated)
+                .filter(|(_, a)| a.is_finite())
+                .map(|(e, a)| e * a)
+                .sum::<f64>();
+        }
+    }
+    if excess_squared <= 0.0 {
+        return Ok(None);
+    }
+    let [heat, load_heat, churning_heat, heat_fast, load_heat_fast] =
+        cross.map(|c| (c / excess_squared).max(0.0));
+    Ok(Some(WarmStart {
+        heat_per_K: heat,
+        load_heat_per_K: load_heat,
+        churning_heat_per_K: churning_heat,
+        heat_quarter_tau_per_K: heat_fast,
+        load_heat_quarter_tau_per_K: load_heat_fast,
+    }))
 }
 
 /// Eq. 15 for a spindle: ΔT_stator, speed and load plus heat accumulated from the speed
@@ -1853,6 +1914,7 @@ fn model_slot(column: &str, stage: Stage) -> Option<(AxisId, ModelSlot)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimators::models::WARM_START_FLOOR_K;
 
     /// A seeded stream of roughly normal numbers (sum of uniforms), unit variance.
     fn noise(seed: u64) -> impl FnMut() -> f64 {
@@ -2256,5 +2318,50 @@ mod tests {
             let i = fitted.model.terms.iter().position(|t| t == term).unwrap();
             assert!((fitted.model.coefficients[i] - slope).abs() < 0.01);
         }
+    }
+
+    /// A part's warm start is the least-squares ratio of each accumulation to the stator's
+    /// excess over the room above the floor: on a recording where that excess is exactly twice
+    /// the accumulated drag heat and ten times the accumulated load heat, it is 1/2 and 1/10
+    /// per kelvin; on recordings where the stator never passes the floor there is none.
+    #[test]
+    fn a_warm_start_is_the_accumulated_heat_per_kelvin_of_stator_excess() {
+        let names = vec![
+            "time_s".to_string(),
+            axis_column(AxisId::X, Quantity::StatorTemp),
+            AMBIENT.to_string(),
+        ];
+        let tau_s = 600.0;
+        let speed = SpeedHeat::of(1500.0);
+        let inputs = vec![heat_inputs(2.0, &speed); 3600];
+        let drag: Vec<f64> = inputs.iter().map(|i| i.drag).collect();
+        let time: Vec<f64> = (0..3600).map(f64::from).collect();
+        let accumulated = accumulate(&time, &drag, tau_s);
+        let recording_with = |excess: &dyn Fn(f64) -> f64| {
+            let mut recording = Recording::new("warming", names.clone()).unwrap();
+            for (&t, &h) in time.iter().zip(&accumulated) {
+                let room_C = 20.0 + t / 3600.0;
+                recording
+                    .push_row(&[t, room_C + excess(h), room_C])
+                    .unwrap();
+            }
+            recording
+        };
+        let warming = recording_with(&|h| WARM_START_FLOOR_K + 2.0 * h);
+        let stator = axis_column(AxisId::X, Quantity::StatorTemp);
+        let fitted = fit_warm_start([(&warming, &inputs)].into_iter(), &stator, tau_s, "test")
+            .unwrap()
+            .expect("the stator rose past the floor");
+        assert!((fitted.heat_per_K - 0.5).abs() < 1e-12, "{fitted:?}");
+        let load_ratio = inputs[0].load / inputs[0].drag;
+        assert!(
+            (fitted.load_heat_per_K - 0.5 * load_ratio).abs() < 1e-12,
+            "{fitted:?}"
+        );
+        // Over τ/4 the heat leads the stator: a ratio, but not the same one.
+        assert!(fitted.heat_quarter_tau_per_K > 0.5, "{fitted:?}");
+        let at_rest = recording_with(&|_| WARM_START_FLOOR_K * 0.9);
+        let none = fit_warm_start([(&at_rest, &inputs)].into_iter(), &stator, tau_s, "test");
+        assert_eq!(none.unwrap(), None);
     }
 }

@@ -268,6 +268,70 @@ pub struct HeatModel {
     pub c_bh: f64,
     /// The temperature model.
     pub temperature: LinearModel,
+    /// How the accumulated heat starts on a machine that is already warm (profiles calibrated
+    /// before it existed, or without a room column, start every part at rest).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warm_start: Option<WarmStart>,
+}
+
+/// The stator's excess over the room that a [`WarmStart`] reads as none: a stator sensor and a
+/// room sensor disagree by a few tenths of a kelvin on a machine at rest (noise, offsets), and
+/// a seed from that would start a cold machine warm. Seeds and their fit both count only the
+/// excess above it; a feed axis of the twin is 1.0–1.9 K above the room after an hour of
+/// production (docs/accuracy.md, *A recording that starts mid-shift*).
+pub const WARM_START_FLOOR_K: f64 = 0.5;
+
+/// Where a part's accumulated heat starts when its estimator starts: each accumulation's value
+/// per kelvin of the stator's excess over the room in the first frame (counted above
+/// [`WARM_START_FLOOR_K`]), fitted on the calibration recordings (least squares through the
+/// origin).
+///
+/// An accumulation that started at zero would read a machine that has run for hours as one
+/// just switched on, and a recording or a session that starts mid-shift would under-read every
+/// part for about 2τ (docs/accuracy.md, *A recording that starts mid-shift*). The stator is
+/// the only part the drives measure whose excess over the room says how hard the axis has been
+/// working lately: it warms with the same moves that heat the bearings and the nut. A stator
+/// within the floor of the room seeds nothing, so a machine at rest starts as before.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WarmStart {
+    /// Accumulated drag heat per kelvin of excess.
+    pub heat_per_K: f64,
+    /// Accumulated load heat per kelvin of excess.
+    pub load_heat_per_K: f64,
+    /// Accumulated churning heat per kelvin of excess.
+    pub churning_heat_per_K: f64,
+    /// Drag heat over τ / [`FAST_HEAT_DIVISOR`] per kelvin of excess.
+    pub heat_quarter_tau_per_K: f64,
+    /// Load heat over τ / [`FAST_HEAT_DIVISOR`] per kelvin of excess.
+    pub load_heat_quarter_tau_per_K: f64,
+}
+
+impl WarmStart {
+    /// The per-kelvin values in the order of [`WarmStart::seeds`].
+    pub fn per_kelvin(&self) -> [f64; 5] {
+        [
+            self.heat_per_K,
+            self.load_heat_per_K,
+            self.churning_heat_per_K,
+            self.heat_quarter_tau_per_K,
+            self.load_heat_quarter_tau_per_K,
+        ]
+    }
+
+    /// The excess a warm start counts for a stator `excess_K` above the room: what is above
+    /// [`WARM_START_FLOOR_K`], and zero for an excess that is not a number (no room reading).
+    pub fn counted_excess(excess_K: f64) -> f64 {
+        let above = excess_K - WARM_START_FLOOR_K;
+        if above > 0.0 { above } else { 0.0 }
+    }
+
+    /// The starting drag, load and churning heat and the drag and load heat over τ/4, for a
+    /// stator `excess_K` above the room ([`WarmStart::counted_excess`]).
+    pub fn seeds(&self, excess_K: f64) -> [f64; 5] {
+        let excess = Self::counted_excess(excess_K);
+        self.per_kelvin().map(|per_K| per_K * excess)
+    }
 }
 
 impl HeatModel {
@@ -398,6 +462,16 @@ impl Calibration {
                         return Err((p(field), "tau_s must be positive and c_bh in (0, 1]".into()));
                     }
                     check(p(field), &heat.temperature, HEAT_FEATURES)?;
+                    if let Some(warm) = &heat.warm_start
+                        && !warm.per_kelvin().iter().all(|v| v.is_finite() && *v >= 0.0)
+                    {
+                        return Err((
+                            p(&format!("{field}.warm_start")),
+                            "every value must be a non-negative number (heat never accumulates \
+                             below zero)"
+                                .into(),
+                        ));
+                    }
                 }
             }
             for (k, model) in m.straightness_h.iter().enumerate() {

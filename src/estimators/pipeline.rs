@@ -7,7 +7,9 @@ use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
-use super::models::{AMBIENT_LAG_FEATURES, AxisModels, BED_LAG_TAUS_S, STATOR_LAG_TAUS_S};
+use super::models::{
+    AMBIENT_LAG_FEATURES, AxisModels, BED_LAG_TAUS_S, STATOR_LAG_TAUS_S, WARM_START_FLOOR_K,
+};
 use super::streaming::{
     BedLags, ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator,
     RoomLags, SettledLags, SpeedHeat, SpindleElongationEstimator, StraightnessEstimator,
@@ -438,6 +440,7 @@ impl EstimatorPipeline {
     /// Updates every estimator with one frame (column 0 is `time_s`).
     pub fn update(&mut self, frame: &[f64]) {
         let t = frame[0];
+        let first = self.previous_time.is_none();
         let dt = self.previous_time.map_or(0.0, |p| (t - p).max(0.0));
         self.previous_time = Some(t);
         let ambient = self.ambient.map_or(f64::NAN, |i| frame[i]);
@@ -541,6 +544,45 @@ impl EstimatorPipeline {
             if let Some(abnormality) = &mut spindle.abnormality {
                 spindle.estimate.abnormality = abnormality.update(&sample(&c, f64::NAN));
             }
+        }
+        if first {
+            self.note_warm_start(frame, ambient);
+        }
+    }
+
+    /// Says, for each feed axis whose stator was above the room in the first frame by more
+    /// than [`WARM_START_FLOOR_K`], how its parts' heat started: from the profile's warm
+    /// start, or (a profile calibrated without one) at rest, which under-reads them until their
+    /// own heat has built up.
+    #[cold]
+    fn note_warm_start(&mut self, frame: &[f64], ambient_C: f64) {
+        for axis in &self.feed {
+            let excess = frame[axis.channels.stator] - ambient_C;
+            let parts: Vec<&ComponentThermalEstimator> = [&axis.front, &axis.back, &axis.nut]
+                .into_iter()
+                .flatten()
+                .collect();
+            // Also skips an excess that is not a number (no room or stator reading).
+            let warm = excess > WARM_START_FLOOR_K;
+            if !warm || parts.is_empty() {
+                continue;
+            }
+            let a = axis.axis;
+            self.notes.push(if parts.iter().all(|p| p.starts_warm()) {
+                format!(
+                    "{a}: the machine was warm at the first frame (stator {excess:.1} K above the \
+                     room): the bearing and nut heat started where the profile's warm start puts \
+                     it, an estimate from the stator alone, until the parts' own heat takes over \
+                     (about two time constants)"
+                )
+            } else {
+                format!(
+                    "{a}: the machine was warm at the first frame (stator {excess:.1} K above the \
+                     room), but the profile has no warm start: the bearing and nut heat started \
+                     at rest and reads low until it has built up (about two time constants); \
+                     calibrate the profile again to get one"
+                )
+            });
         }
     }
 

@@ -8,7 +8,7 @@
 use super::models::{
     AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
     FAST_HEAT_DIVISOR, FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels, LinearModel,
-    RATIO_FEATURES, STRAIGHTNESS_FEATURES,
+    RATIO_FEATURES, STRAIGHTNESS_FEATURES, WarmStart,
 };
 
 /// rpm → rad/s.
@@ -327,6 +327,9 @@ pub struct ComponentThermalEstimator {
     /// The drag and load heat over the fast τ, only where the model reads either.
     fast_heat: Option<[HeatAccumulator; 2]>,
     model: BoundModel,
+    warm_start: Option<WarmStart>,
+    /// False until the first sample, which seeds the accumulators ([`WarmStart`]).
+    started: bool,
 }
 
 impl ComponentThermalEstimator {
@@ -347,7 +350,35 @@ impl ComponentThermalEstimator {
                 ]
             }),
             model: bound,
+            warm_start: model.warm_start,
+            started: false,
         })
+    }
+
+    /// Seeds the accumulators from the first sample's stator excess over the room, where the
+    /// model has a [`WarmStart`]; a first sample without a room or stator reading starts the
+    /// part at rest. Only ever at the first sample: seeding later would overwrite heat the
+    /// estimator has accumulated itself.
+    #[cold]
+    fn start(&mut self, surroundings: &ThermalSurroundings) {
+        self.started = true;
+        let Some(warm) = &self.warm_start else {
+            return;
+        };
+        let [heat, load_heat, churning_heat, heat_fast, load_heat_fast] =
+            warm.seeds(surroundings.stator_C - surroundings.room.ambient_C);
+        self.heat.settle_at(heat);
+        self.load_heat.settle_at(load_heat);
+        self.churning_heat.settle_at(churning_heat);
+        if let Some([drag, load]) = &mut self.fast_heat {
+            drag.settle_at(heat_fast);
+            load.settle_at(load_heat_fast);
+        }
+    }
+
+    /// True if the model seeds its heat on a warm machine ([`WarmStart`]).
+    pub fn starts_warm(&self) -> bool {
+        self.warm_start.is_some()
     }
 
     /// °C after one sample, from the component's torque, the axis's sampled speed (as
@@ -360,6 +391,9 @@ impl ComponentThermalEstimator {
         surroundings: &ThermalSurroundings,
         dt: f64,
     ) -> f64 {
+        if !self.started {
+            self.start(surroundings);
+        }
         let inputs = heat_inputs(torque_Nm, speed);
         let h = self.heat.update(inputs.drag, dt);
         let l = self.load_heat.update(inputs.load, dt);
@@ -810,7 +844,7 @@ impl SpindleElongationEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimators::models::STATOR_LAG_TAUS_S;
+    use crate::estimators::models::{STATOR_LAG_TAUS_S, WARM_START_FLOOR_K};
 
     #[test]
     fn minimum_zone_of_a_straight_line_is_zero_and_of_a_bow_is_its_sag() {
@@ -1120,6 +1154,7 @@ mod tests {
                 &["const", "heat", "heat_quarter_tau", "load_heat_quarter_tau"],
                 &[20.0, 1.0, 2.0, 3.0],
             ),
+            warm_start: None,
         };
         let mut part = ComponentThermalEstimator::new(&model).unwrap();
         let mut room = RoomLags::default();
@@ -1148,6 +1183,84 @@ mod tests {
             last = part.update(2.0, &speed, &surroundings, 1.0);
         }
         assert!((last - (20.0 + reached(1200.0))).abs() < 1e-9, "{last}");
+    }
+
+    /// A part whose estimator starts on a warm machine starts its heat where the profile's
+    /// warm start puts it for the stator's excess over the room in the first sample, and then
+    /// accumulates from there; a stator within [`WARM_START_FLOOR_K`] of the room, or no room
+    /// reading, starts it at rest; and only the first sample seeds.
+    #[test]
+    fn a_part_started_on_a_warm_machine_starts_with_heat_in_it() {
+        let warm_start = WarmStart {
+            heat_per_K: 0.1,
+            load_heat_per_K: 0.01,
+            churning_heat_per_K: 0.2,
+            heat_quarter_tau_per_K: 0.3,
+            load_heat_quarter_tau_per_K: 0.02,
+        };
+        let model = HeatModel {
+            tau_s: 1800.0,
+            c_bh: HeatAccumulator::c_bh_at_rate(1800.0, 1.0),
+            temperature: LinearModel::with_terms(
+                &[
+                    "const",
+                    "heat",
+                    "load_heat",
+                    "churning_heat",
+                    "heat_quarter_tau",
+                    "load_heat_quarter_tau",
+                ],
+                &[20.0, 1.0, 10.0, 100.0, 1000.0, 10000.0],
+            ),
+            warm_start: Some(warm_start),
+        };
+        let at = |stator_C: f64, ambient_C: f64| ThermalSurroundings {
+            stator_C,
+            stator_lags_C: [stator_C; 3],
+            room: RoomLags::default().update(ambient_C, 0.0),
+            coolant_lags: [f64::NAN; 2],
+        };
+        let standing = SpeedHeat::of(0.0);
+        // 2 K above the room counts 1.5 K above the floor.
+        let counted = 2.0 - WARM_START_FLOOR_K;
+        let seeded =
+            20.0 + counted * (0.1 + 10.0 * 0.01 + 100.0 * 0.2 + 1000.0 * 0.3 + 10000.0 * 0.02);
+        let mut part = ComponentThermalEstimator::new(&model).unwrap();
+        assert!(part.starts_warm());
+        let first = part.update(0.0, &standing, &at(24.0, 22.0), 0.0);
+        assert!((first - seeded).abs() < 1e-9, "{first} against {seeded}");
+        assert!((part.heat() - 0.1 * counted).abs() < 1e-12);
+        // Standing still, the seeded heat decays as any accumulated heat does, each over its
+        // own τ; a later sample with a hotter stator seeds nothing more.
+        let later = part.update(0.0, &standing, &at(40.0, 22.0), 600.0);
+        let kept = |tau: f64| (-600.0 / tau).exp();
+        let expected = 20.0
+            + counted
+                * ((0.1 + 10.0 * 0.01 + 100.0 * 0.2) * kept(1800.0)
+                    + (1000.0 * 0.3 + 10000.0 * 0.02) * kept(450.0));
+        assert!(
+            (later - expected).abs() < 1e-9,
+            "{later} against {expected}"
+        );
+        let within_floor = 22.0 + WARM_START_FLOOR_K;
+        for (stator, ambient) in [
+            (21.0, 22.0),
+            (within_floor, 22.0),
+            (24.0, f64::NAN),
+            (f64::NAN, 22.0),
+        ] {
+            let mut part = ComponentThermalEstimator::new(&model).unwrap();
+            part.update(0.0, &standing, &at(stator, ambient), 0.0);
+            assert_eq!(part.heat(), 0.0, "stator {stator}, room {ambient}");
+        }
+        // A profile without a warm start starts at rest however warm the machine is.
+        let cold = HeatModel {
+            warm_start: None,
+            ..model
+        };
+        let mut part = ComponentThermalEstimator::new(&cold).unwrap();
+        assert!(!part.starts_warm());
+        assert_eq!(part.update(0.0, &standing, &at(30.0, 22.0), 0.0), 20.0);
     }
 
     #[test]

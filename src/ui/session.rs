@@ -230,7 +230,7 @@ impl Session {
             .enable_time()
             .build()
             .map_err(SessionError::Thread)?;
-        let worker = Worker {
+        let mut worker = Worker {
             link,
             recorder: None,
             recorder_snapshot: RecorderSnapshot::off(),
@@ -255,24 +255,14 @@ impl Session {
                 .map(|(id, _)| *id)
                 .collect(),
             last_time_s: None,
+            notes_said: 0,
         };
         if let Some(error) = pipeline_error {
             worker.event(EventKind::Condition, Severity::Warning, error);
         }
         // What the estimators cannot do on this link (e.g. no abnormality score without the
         // depth of cut) is said once, so a missing reading is never a mystery.
-        let notes = worker
-            .pipeline
-            .as_ref()
-            .map_or(&[][..], |p| p.notes())
-            .to_vec();
-        for note in notes {
-            worker.event(
-                EventKind::Condition,
-                Severity::Warning,
-                format!("estimators: {note}"),
-            );
-        }
+        worker.say_new_notes();
         let thread = std::thread::Builder::new()
             .name("servosight-session".into())
             .spawn(move || worker.run(&runtime, command_rx))
@@ -361,6 +351,9 @@ struct Worker {
     feed_axes: Vec<AxisId>,
     /// Machine time of the newest frame.
     last_time_s: Option<f64>,
+    /// How many of the pipeline's notes have been said as events: it adds one when a frame
+    /// shows something (a machine already warm at the first frame).
+    notes_said: usize,
 }
 
 impl Worker {
@@ -454,7 +447,25 @@ impl Worker {
                 row.extend_from_slice(&self.estimates);
             }
         }
+        self.say_new_notes();
         self.forward(rows, received_at);
+    }
+
+    /// Says each of the pipeline's notes not said yet as a warning event, once.
+    fn say_new_notes(&mut self) {
+        let notes = self.pipeline.as_ref().map_or(&[][..], |p| p.notes());
+        if notes.len() <= self.notes_said {
+            return;
+        }
+        let new: Vec<String> = notes[self.notes_said..].to_vec();
+        self.notes_said = notes.len();
+        for note in new {
+            self.event(
+                EventKind::Condition,
+                Severity::Warning,
+                format!("estimators: {note}"),
+            );
+        }
     }
 
     /// Hands rows to the UI; when its queue is full they wait here (merged), and only beyond
