@@ -210,7 +210,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     r.max_abs_error,
                     r.reference_noise,
                     corrected,
-                    r.reference
+                    match r.reference_offset {
+                        Some(offset) => format!("{} − {offset:.4} (its first row)", r.reference),
+                        None => r.reference.clone(),
+                    }
                 )?;
             }
             outln!(

@@ -126,7 +126,7 @@ pub fn run_streaming<R: Read>(
         .zip(&pairs)
         .map(|((output, _), (estimates, references))| {
             let o = &outputs[*output];
-            score(&o.id, &o.reference, estimates, references)
+            score(o, estimates, references)
         })
         .collect();
     Ok(StreamedRun {
@@ -146,6 +146,10 @@ pub struct AccuracyRow {
     pub estimate: String,
     /// The reference column.
     pub reference: String,
+    /// What was subtracted from the reference for an estimate that counts from the first row
+    /// (the spindle elongation: the reference at the tool-calibration moment); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_offset: Option<f64>,
     /// Samples compared.
     pub n: usize,
     /// 1 − SSE/SST of the reference: the share of the reference's variance the estimate explains.
@@ -173,20 +177,30 @@ pub fn accuracy(series: &EstimateSeries, recording: &Recording) -> Vec<AccuracyR
         .zip(&series.values)
         .filter_map(|(output, estimate)| {
             let reference = recording.try_column(&output.reference)?;
-            Some(score(&output.id, &output.reference, estimate, reference))
+            Some(score(output, estimate, reference))
         })
         .collect()
 }
 
 /// R², RMSE and maximum error of `estimate` against `reference` (rows where either is not finite
-/// are skipped).
-pub fn score(id: &str, reference_name: &str, estimate: &[f64], reference: &[f64]) -> AccuracyRow {
-    let pairs: Vec<(f64, f64)> = estimate
+/// are skipped). An output that [counts from the first row](EstimateOutput::counts_from_first_row)
+/// is scored against the reference's change since the first row where both are known.
+pub fn score(output: &EstimateOutput, estimate: &[f64], reference: &[f64]) -> AccuracyRow {
+    let mut pairs: Vec<(f64, f64)> = estimate
         .iter()
         .zip(reference)
         .filter(|(e, r)| e.is_finite() && r.is_finite())
         .map(|(&e, &r)| (e, r))
         .collect();
+    let reference_offset = output
+        .counts_from_first_row
+        .then(|| pairs.first().map(|&(_, r)| r))
+        .flatten();
+    if let Some(offset) = reference_offset {
+        for (_, r) in &mut pairs {
+            *r -= offset;
+        }
+    }
     let n = pairs.len();
     let mean = pairs.iter().map(|(_, r)| r).sum::<f64>() / n.max(1) as f64;
     let sse: f64 = pairs.iter().map(|(e, r)| (r - e).powi(2)).sum();
@@ -198,8 +212,9 @@ pub fn score(id: &str, reference_name: &str, estimate: &[f64], reference: &[f64]
     let r2_noise_corrected = (noise_variance < 0.5 * variance)
         .then(|| 1.0 - (mse - noise_variance).max(0.0) / (variance - noise_variance));
     AccuracyRow {
-        estimate: id.to_string(),
-        reference: reference_name.to_string(),
+        estimate: output.id.clone(),
+        reference: output.reference.clone(),
+        reference_offset,
         n,
         r2: if sst > 0.0 { 1.0 - sse / sst } else { f64::NAN },
         rmse: (sse / n.max(1) as f64).sqrt(),
@@ -261,14 +276,44 @@ mod tests {
         assert_eq!(streamed.notes, whole.notes);
     }
 
+    /// An output named `x`, scored against `ref.x`.
+    fn output(counts_from_first_row: bool) -> EstimateOutput {
+        EstimateOutput {
+            id: "x".into(),
+            column: "est.x".into(),
+            reference: "ref.x".into(),
+            counts_from_first_row,
+        }
+    }
+
     #[test]
     fn score_matches_hand_computation() {
-        let row = score("x", "ref.x", &[1.0, 2.0, 4.0], &[1.0, 3.0, 5.0]);
+        let row = score(&output(false), &[1.0, 2.0, 4.0], &[1.0, 3.0, 5.0]);
+        assert_eq!(row.reference_offset, None);
         // mean 3, SST = 4 + 0 + 4 = 8, SSE = 0 + 1 + 1 = 2.
         assert_eq!(row.n, 3);
         assert!((row.r2 - 0.75).abs() < 1e-12);
         assert!((row.rmse - (2.0_f64 / 3.0).sqrt()).abs() < 1e-12);
         assert_eq!(row.max_abs_error, 1.0);
+    }
+
+    /// An estimate that counts from the first row (the elongation since the tool calibration)
+    /// is scored against the reference's change since the first row where both are known: a
+    /// reference that starts at 5 µm and grows as the estimate does is met exactly.
+    #[test]
+    fn an_estimate_counted_from_the_first_row_meets_the_references_change() {
+        let estimate = [f64::NAN, 0.0, 1.0, 3.0];
+        let reference = [4.0, 5.0, 6.0, 8.0];
+        let row = score(&output(true), &estimate, &reference);
+        assert_eq!(row.reference_offset, Some(5.0));
+        assert_eq!(
+            (row.n, row.r2, row.rmse, row.max_abs_error),
+            (3, 1.0, 0.0, 0.0)
+        );
+        // Scored against the value instead, the same pairs miss by 5 everywhere.
+        let row = score(&output(false), &estimate, &reference);
+        assert_eq!(row.max_abs_error, 5.0);
+        assert!(row.r2 < -10.0, "{row:?}");
     }
 
     #[test]
@@ -283,7 +328,7 @@ mod tests {
             .iter()
             .map(|t| t + 0.2 * rng.sample::<f64, _>(StandardNormal))
             .collect();
-        let row = score("x", "ref.x", &truth, &reference);
+        let row = score(&output(false), &truth, &reference);
         assert!((row.reference_noise - 0.2).abs() < 0.01, "{row:?}");
         assert!(row.r2 < 0.85, "{row:?}");
         let corrected = row

@@ -630,6 +630,7 @@ impl EstimatorPipeline {
                     id,
                     column: est,
                     reference,
+                    counts_from_first_row: false,
                 })
             };
             if axis.flange.is_some() {
@@ -701,6 +702,7 @@ impl EstimatorPipeline {
                     id: "spindle_elongation".into(),
                     column: format!("est.{a}.elongation_um"),
                     reference: reference_column(a, "elongation_um", None),
+                    counts_from_first_row: true,
                 });
             }
             if spindle.abnormality.is_some() {
@@ -772,6 +774,7 @@ fn abnormality_output(axis: AxisId) -> EstimateOutput {
         id: "motor_abnormality".into(),
         column: format!("est.{axis}.abnormality_pct"),
         reference: String::new(),
+        counts_from_first_row: false,
     }
 }
 
@@ -784,6 +787,11 @@ pub struct EstimateOutput {
     pub column: String,
     /// The reference column it is validated against (empty if none can exist).
     pub reference: String,
+    /// The estimate counts from the first row, as the spindle elongation counts from the
+    /// tool-calibration moment: it is scored against the reference's change since that row,
+    /// not against its value (which counts from a machine at rest, and which a recording that
+    /// starts mid-shift does not start from).
+    pub counts_from_first_row: bool,
 }
 
 fn uses_ambient(models: &AxisModels) -> bool {
