@@ -621,15 +621,24 @@ mod tests {
         // A warm start that would start a part with negative or undefined heat.
         let shipped = include_str!("../assets/it25-twin.toml");
         for bad in ["-0.1", "nan", "inf"] {
-            let text = shipped.replacen("\nheat_per_K = ", &format!("\nheat_per_K = {bad} # "), 1);
+            let text = shipped.replacen("\nheat = ", &format!("\nheat = {bad} # "), 1);
             let err = MachineProfile::from_toml(&text, "p.toml")
                 .unwrap_err()
                 .to_string();
             assert!(
                 err.contains("calibration.axes.X.front_bearing_temp.warm_start")
-                    && err.contains("non-negative number"),
+                    && err.contains("`heat` must be a non-negative number"),
                 "{bad}: {err}"
             );
         }
+        // …or that names an accumulation the part does not have.
+        let text = shipped.replacen("\nheat = ", "\nheat_fast = ", 1);
+        let err = MachineProfile::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("warm_start") && err.contains("`heat_fast` is not an accumulation"),
+            "{err}"
+        );
     }
 }

@@ -31,7 +31,7 @@ use super::models::{
     AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
     BED_LAG_TAUS_S, COOLANT_LAG_FEATURES, Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES,
     ElongationModel, FAST_HEAT_DIVISOR, FAST_HEAT_FEATURES, HeatModel, IDEAL_TORQUE_FEATURES,
-    LinearModel, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S, WarmStart,
+    LinearModel, PART_ACCUMULATIONS, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S, WarmStart,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
@@ -1312,7 +1312,7 @@ fn fit_heat_model(
     let warm_start = if fit.has_ambient {
         let recordings = database.iter().zip(&db_inputs);
         let recordings = recordings.chain(experiments.iter().zip(&experiment_inputs));
-        fit_warm_start(recordings, &stator_name, tau, &estimate)?
+        fit_part_warm_start(recordings, &stator_name, tau, &estimate)?
     } else {
         None
     };
@@ -1335,38 +1335,32 @@ fn fit_heat_model(
     Ok((model, report))
 }
 
-/// A part's [`WarmStart`]: each of its accumulations at `tau_s` (the drag and load heat also
-/// at τ / [`FAST_HEAT_DIVISOR`]) over the calibration recordings, fitted through the origin on
-/// the stator's excess over the room as [`WarmStart::counted_excess`] counts it. None where the
-/// stator never rose past the floor: the recordings then say nothing about a warm machine.
-fn fit_warm_start<'a>(
-    recordings: impl Iterator<Item = (&'a Recording, &'a Vec<HeatInputs>)>,
+/// The stator's excess over the room in each row of a recording, as a [`WarmStart`] counts it.
+fn counted_excess(
+    recording: &Recording,
     stator: &str,
-    tau_s: f64,
     purpose: &str,
-) -> Result<Option<WarmStart>, CalibrationError> {
-    type Input = fn(&HeatInputs) -> f64;
-    let accumulations: [(Input, f64); 5] = [
-        (|i| i.drag, tau_s),
-        (|i| i.load, tau_s),
-        (|i| i.churning, tau_s),
-        (|i| i.drag, tau_s / FAST_HEAT_DIVISOR),
-        (|i| i.load, tau_s / FAST_HEAT_DIVISOR),
-    ];
-    let (mut excess_squared, mut cross) = (0.0, [0.0; 5]);
-    for (recording, inputs) in recordings {
-        let stator = recording.column_for(stator, purpose)?;
-        let room = recording.column_for(AMBIENT, purpose)?;
-        let excess: Vec<f64> = stator
-            .iter()
-            .zip(room)
-            .map(|(s, r)| WarmStart::counted_excess(s - r))
-            .collect();
+) -> Result<Vec<f64>, CalibrationError> {
+    let stator = recording.column_for(stator, purpose)?;
+    let room = recording.column_for(AMBIENT, purpose)?;
+    Ok(stator
+        .iter()
+        .zip(room)
+        .map(|(s, r)| WarmStart::counted_excess(s - r))
+        .collect())
+}
+
+/// A [`WarmStart`]: each accumulation over the calibration recordings, fitted through the origin
+/// on the counted stator excess of the same rows. Each item is one recording's excess
+/// ([`counted_excess`]) and its accumulations by feature. None where the stator never rose
+/// past the floor: the recordings then say nothing about a warm machine.
+fn fit_warm_start(recordings: impl IntoIterator<Item = (Vec<f64>, Columns)>) -> Option<WarmStart> {
+    let mut excess_squared = 0.0;
+    let mut cross: BTreeMap<String, f64> = BTreeMap::new();
+    for (excess, accumulations) in recordings {
         excess_squared += excess.iter().map(|e| e * e).sum::<f64>();
-        for ((input, tau), sum) in accumulations.iter().zip(&mut cross) {
-            let series: Vec<f64> = inputs.iter().map(input).collect();
-            let accumulated = accumulate(recording.time(), &series, *tau);
-            *sum += excess
+        for (feature, accumulated) in accumulations {
+            *cross.entry(feature).or_default() += excess
                 .iter()
                 .zip(&accumulated)
                 .filter(|(_, a)| a.is_finite())
@@ -1374,18 +1368,49 @@ fn fit_warm_start<'a>(
                 .sum::<f64>();
         }
     }
-    if excess_squared <= 0.0 {
-        return Ok(None);
-    }
-    let [heat, load_heat, churning_heat, heat_fast, load_heat_fast] =
-        cross.map(|c| (c / excess_squared).max(0.0));
-    Ok(Some(WarmStart {
-        heat_per_K: heat,
-        load_heat_per_K: load_heat,
-        churning_heat_per_K: churning_heat,
-        heat_quarter_tau_per_K: heat_fast,
-        load_heat_quarter_tau_per_K: load_heat_fast,
-    }))
+    (excess_squared > 0.0).then(|| {
+        WarmStart::new(
+            cross
+                .into_iter()
+                .map(|(feature, c)| (feature, (c / excess_squared).max(0.0))),
+        )
+    })
+}
+
+/// A part's [`WarmStart`] over its accumulations at `tau_s` (the drag and load heat also at τ /
+/// [`FAST_HEAT_DIVISOR`]).
+fn fit_part_warm_start<'a>(
+    recordings: impl Iterator<Item = (&'a Recording, &'a Vec<HeatInputs>)>,
+    stator: &str,
+    tau_s: f64,
+    purpose: &str,
+) -> Result<Option<WarmStart>, CalibrationError> {
+    type Input = fn(&HeatInputs) -> f64;
+    let fast_tau_s = tau_s / FAST_HEAT_DIVISOR;
+    let accumulations: [(Input, f64); PART_ACCUMULATIONS.len()] = [
+        (|i| i.drag, tau_s),
+        (|i| i.load, tau_s),
+        (|i| i.churning, tau_s),
+        (|i| i.drag, fast_tau_s),
+        (|i| i.load, fast_tau_s),
+    ];
+    let per_recording = recordings
+        .map(|(recording, inputs)| {
+            let columns = PART_ACCUMULATIONS
+                .iter()
+                .zip(&accumulations)
+                .map(|(feature, (input, tau))| {
+                    let series: Vec<f64> = inputs.iter().map(input).collect();
+                    (
+                        feature.to_string(),
+                        accumulate(recording.time(), &series, *tau),
+                    )
+                })
+                .collect();
+            Ok((counted_excess(recording, stator, purpose)?, columns))
+        })
+        .collect::<Result<Vec<_>, CalibrationError>>()?;
+    Ok(fit_warm_start(per_recording))
 }
 
 /// Eq. 15 for a spindle: ΔT_stator, speed and load plus heat accumulated from the speed
@@ -2349,19 +2374,20 @@ mod tests {
         };
         let warming = recording_with(&|h| WARM_START_FLOOR_K + 2.0 * h);
         let stator = axis_column(AxisId::X, Quantity::StatorTemp);
-        let fitted = fit_warm_start([(&warming, &inputs)].into_iter(), &stator, tau_s, "test")
+        let fitted = fit_part_warm_start([(&warming, &inputs)].into_iter(), &stator, tau_s, "t")
             .unwrap()
             .expect("the stator rose past the floor");
-        assert!((fitted.heat_per_K - 0.5).abs() < 1e-12, "{fitted:?}");
+        assert!((fitted.per_K("heat") - 0.5).abs() < 1e-12, "{fitted:?}");
         let load_ratio = inputs[0].load / inputs[0].drag;
         assert!(
-            (fitted.load_heat_per_K - 0.5 * load_ratio).abs() < 1e-12,
+            (fitted.per_K("load_heat") - 0.5 * load_ratio).abs() < 1e-12,
             "{fitted:?}"
         );
         // Over τ/4 the heat leads the stator: a ratio, but not the same one.
-        assert!(fitted.heat_quarter_tau_per_K > 0.5, "{fitted:?}");
+        assert!(fitted.per_K("heat_quarter_tau") > 0.5, "{fitted:?}");
+        fitted.check(&PART_ACCUMULATIONS).unwrap();
         let at_rest = recording_with(&|_| WARM_START_FLOOR_K * 0.9);
-        let none = fit_warm_start([(&at_rest, &inputs)].into_iter(), &stator, tau_s, "test");
+        let none = fit_part_warm_start([(&at_rest, &inputs)].into_iter(), &stator, tau_s, "t");
         assert_eq!(none.unwrap(), None);
     }
 }

@@ -281,42 +281,46 @@ pub struct HeatModel {
 /// production (docs/accuracy.md, *A recording that starts mid-shift*).
 pub const WARM_START_FLOOR_K: f64 = 0.5;
 
-/// Where a part's accumulated heat starts when its estimator starts: each accumulation's value
-/// per kelvin of the stator's excess over the room in the first frame (counted above
-/// [`WARM_START_FLOOR_K`]), fitted on the calibration recordings (least squares through the
-/// origin).
+/// The accumulations of a bearing's or the nut's heat model, by the feature that reads each
+/// ([`HEAT_FEATURES`]): what a [`WarmStart`] of a part may seed.
+pub const PART_ACCUMULATIONS: [&str; 5] = [
+    "heat",
+    "load_heat",
+    "churning_heat",
+    "heat_quarter_tau",
+    "load_heat_quarter_tau",
+];
+
+/// Where accumulated heat starts when its estimator starts: each accumulation's value per
+/// kelvin of the stator's excess over the room in the first frame (counted above
+/// [`WARM_START_FLOOR_K`]), by the feature that reads it, fitted on the calibration recordings
+/// (least squares through the origin). An accumulation it does not name starts at zero.
 ///
 /// An accumulation that started at zero would read a machine that has run for hours as one
 /// just switched on, and a recording or a session that starts mid-shift would under-read every
 /// part for about 2τ (docs/accuracy.md, *A recording that starts mid-shift*). The stator is
 /// the only part the drives measure whose excess over the room says how hard the axis has been
-/// working lately: it warms with the same moves that heat the bearings and the nut. A stator
-/// within the floor of the room seeds nothing, so a machine at rest starts as before.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// working lately: it warms with the same moves that heat the bearings and the nut. (The
+/// spindle elongation has none: its heat bank seeded so read worse, docs/accuracy.md.) A stator
+/// within the floor of the room seeds nothing, so a machine at rest starts as
+/// before.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
 pub struct WarmStart {
-    /// Accumulated drag heat per kelvin of excess.
-    pub heat_per_K: f64,
-    /// Accumulated load heat per kelvin of excess.
-    pub load_heat_per_K: f64,
-    /// Accumulated churning heat per kelvin of excess.
-    pub churning_heat_per_K: f64,
-    /// Drag heat over τ / [`FAST_HEAT_DIVISOR`] per kelvin of excess.
-    pub heat_quarter_tau_per_K: f64,
-    /// Load heat over τ / [`FAST_HEAT_DIVISOR`] per kelvin of excess.
-    pub load_heat_quarter_tau_per_K: f64,
+    per_K: BTreeMap<String, f64>,
 }
 
 impl WarmStart {
-    /// The per-kelvin values in the order of [`WarmStart::seeds`].
-    pub fn per_kelvin(&self) -> [f64; 5] {
-        [
-            self.heat_per_K,
-            self.load_heat_per_K,
-            self.churning_heat_per_K,
-            self.heat_quarter_tau_per_K,
-            self.load_heat_quarter_tau_per_K,
-        ]
+    /// A warm start from (feature, accumulated value per kelvin) pairs.
+    pub fn new(per_K: impl IntoIterator<Item = (String, f64)>) -> Self {
+        WarmStart {
+            per_K: per_K.into_iter().collect(),
+        }
+    }
+
+    /// The accumulated value per kelvin for `feature` (zero for one it does not name).
+    pub fn per_K(&self, feature: &str) -> f64 {
+        self.per_K.get(feature).copied().unwrap_or(0.0)
     }
 
     /// The excess a warm start counts for a stator `excess_K` above the room: what is above
@@ -326,11 +330,31 @@ impl WarmStart {
         if above > 0.0 { above } else { 0.0 }
     }
 
-    /// The starting drag, load and churning heat and the drag and load heat over τ/4, for a
-    /// stator `excess_K` above the room ([`WarmStart::counted_excess`]).
-    pub fn seeds(&self, excess_K: f64) -> [f64; 5] {
+    /// The starting values of `features`' accumulations for a stator `excess_K` above the room
+    /// ([`WarmStart::counted_excess`]).
+    pub fn seeds<const N: usize>(&self, features: &[&str; N], excess_K: f64) -> [f64; N] {
         let excess = Self::counted_excess(excess_K);
-        self.per_kelvin().map(|per_K| per_K * excess)
+        features.map(|feature| self.per_K(feature) * excess)
+    }
+
+    /// Checks that every feature named is one of `accumulations` and every value a
+    /// non-negative number (heat never accumulates below zero).
+    pub fn check(&self, accumulations: &[&str]) -> Result<(), String> {
+        for (feature, value) in &self.per_K {
+            if !accumulations.contains(&feature.as_str()) {
+                return Err(format!(
+                    "`{feature}` is not an accumulation this model starts (one of {})",
+                    accumulations.join(", ")
+                ));
+            }
+            if !(value.is_finite() && *value >= 0.0) {
+                return Err(format!(
+                    "`{feature}` must be a non-negative number (heat never accumulates below \
+                     zero), not {value}"
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -462,15 +486,9 @@ impl Calibration {
                         return Err((p(field), "tau_s must be positive and c_bh in (0, 1]".into()));
                     }
                     check(p(field), &heat.temperature, HEAT_FEATURES)?;
-                    if let Some(warm) = &heat.warm_start
-                        && !warm.per_kelvin().iter().all(|v| v.is_finite() && *v >= 0.0)
-                    {
-                        return Err((
-                            p(&format!("{field}.warm_start")),
-                            "every value must be a non-negative number (heat never accumulates \
-                             below zero)"
-                                .into(),
-                        ));
+                    if let Some(warm) = &heat.warm_start {
+                        warm.check(&PART_ACCUMULATIONS)
+                            .map_err(|e| (p(&format!("{field}.warm_start")), e))?;
                     }
                 }
             }
@@ -711,6 +729,7 @@ mod tests {
         );
         assert_eq!(HEAT_FEATURES[heat_lags + 6..], COOLANT_LAG_FEATURES);
         assert_eq!(HEAT_FEATURES[heat_lags - 2..heat_lags], FAST_HEAT_FEATURES);
+        assert_eq!(HEAT_FEATURES[3..heat_lags], PART_ACCUMULATIONS);
         assert_eq!(BED_LAG_FEATURES[5..], COOLANT_LAG_FEATURES);
         let bed = STRAIGHTNESS_FEATURES.len() - BED_LAG_FEATURES.len();
         assert_eq!(STRAIGHTNESS_FEATURES[bed..], BED_LAG_FEATURES);

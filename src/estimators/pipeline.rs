@@ -550,25 +550,28 @@ impl EstimatorPipeline {
         }
     }
 
-    /// Says, for each feed axis whose stator was above the room in the first frame by more
-    /// than [`WARM_START_FLOOR_K`], how its parts' heat started: from the profile's warm
-    /// start, or (a profile calibrated without one) at rest, which under-reads them until their
-    /// own heat has built up.
+    /// Says, for each axis whose stator was above the room in the first frame by more than
+    /// [`WARM_START_FLOOR_K`], how its accumulated heat started: a feed axis's parts from the
+    /// profile's warm start or (a profile calibrated without one) at rest, a spindle's at rest
+    /// (it has no warm start). Heat started at rest reads low until it has built up.
     #[cold]
     fn note_warm_start(&mut self, frame: &[f64], ambient_C: f64) {
+        let mut notes = Vec::new();
+        // Also skips an excess that is not a number (no room or stator reading).
+        let warm_by = |stator: usize| {
+            let excess = frame[stator] - ambient_C;
+            (excess > WARM_START_FLOOR_K).then_some(excess)
+        };
         for axis in &self.feed {
-            let excess = frame[axis.channels.stator] - ambient_C;
             let parts: Vec<&ComponentThermalEstimator> = [&axis.front, &axis.back, &axis.nut]
                 .into_iter()
                 .flatten()
                 .collect();
-            // Also skips an excess that is not a number (no room or stator reading).
-            let warm = excess > WARM_START_FLOOR_K;
-            if !warm || parts.is_empty() {
+            let (Some(excess), false) = (warm_by(axis.channels.stator), parts.is_empty()) else {
                 continue;
-            }
+            };
             let a = axis.axis;
-            self.notes.push(if parts.iter().all(|p| p.starts_warm()) {
+            notes.push(if parts.iter().all(|p| p.starts_warm()) {
                 format!(
                     "{a}: the machine was warm at the first frame (stator {excess:.1} K above the \
                      room): the bearing and nut heat started where the profile's warm start puts \
@@ -584,6 +587,19 @@ impl EstimatorPipeline {
                 )
             });
         }
+        for spindle in self.spindles.iter().filter(|s| s.elongation.is_some()) {
+            if let Some(excess) = warm_by(spindle.channels.stator) {
+                notes.push(format!(
+                    "{}: the spindle was warm at the first frame (stator {excess:.1} K above the \
+                     room): its elongation model's heat starts at rest, so for the first hours \
+                     the elongation since the tool calibration may read growth a spindle already \
+                     in balance does not show (no warm start is fitted for it: seeded from the \
+                     stator it read worse, docs/accuracy.md)",
+                    spindle.axis
+                ));
+            }
+        }
+        self.notes.extend(notes);
     }
 
     /// The latest estimates of a feed axis.

@@ -8,7 +8,7 @@
 use super::models::{
     AMBIENT_LAG_TAUS_S, BED_LAG_TAUS_S, BoundModel, ELONGATION_FEATURES, ElongationModel,
     FAST_HEAT_DIVISOR, FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels, LinearModel,
-    RATIO_FEATURES, STRAIGHTNESS_FEATURES, WarmStart,
+    PART_ACCUMULATIONS, RATIO_FEATURES, STRAIGHTNESS_FEATURES, WarmStart,
 };
 
 /// rpm → rad/s.
@@ -350,7 +350,7 @@ impl ComponentThermalEstimator {
                 ]
             }),
             model: bound,
-            warm_start: model.warm_start,
+            warm_start: model.warm_start.clone(),
             started: false,
         })
     }
@@ -365,8 +365,10 @@ impl ComponentThermalEstimator {
         let Some(warm) = &self.warm_start else {
             return;
         };
-        let [heat, load_heat, churning_heat, heat_fast, load_heat_fast] =
-            warm.seeds(surroundings.stator_C - surroundings.room.ambient_C);
+        let [heat, load_heat, churning_heat, heat_fast, load_heat_fast] = warm.seeds(
+            &PART_ACCUMULATIONS,
+            surroundings.stator_C - surroundings.room.ambient_C,
+        );
         self.heat.settle_at(heat);
         self.load_heat.settle_at(load_heat);
         self.churning_heat.settle_at(churning_heat);
@@ -1191,13 +1193,12 @@ mod tests {
     /// reading, starts it at rest; and only the first sample seeds.
     #[test]
     fn a_part_started_on_a_warm_machine_starts_with_heat_in_it() {
-        let warm_start = WarmStart {
-            heat_per_K: 0.1,
-            load_heat_per_K: 0.01,
-            churning_heat_per_K: 0.2,
-            heat_quarter_tau_per_K: 0.3,
-            load_heat_quarter_tau_per_K: 0.02,
-        };
+        let warm_start = WarmStart::new(
+            PART_ACCUMULATIONS
+                .iter()
+                .zip([0.1, 0.01, 0.2, 0.3, 0.02])
+                .map(|(name, per_K)| (name.to_string(), per_K)),
+        );
         let model = HeatModel {
             tau_s: 1800.0,
             c_bh: HeatAccumulator::c_bh_at_rate(1800.0, 1.0),
