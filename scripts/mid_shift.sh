@@ -38,6 +38,7 @@ python3 - "$out" <<'PY'
 import collections, glob, json, statistics, sys
 
 estimates = ["motor_flange_temp", "front_bearing_temp", "back_bearing_temp", "nut_temp",
+             "spindle_elongation",
              "straightness_h", "straightness_v"]
 print("R² and RMSE over 24 cuts (days 7, 8, 9 from each hour 1..8); straightness pools its 5")
 print("nodes. Noise-free: R² against the noise-free reference, where the reference varies more")
