@@ -249,6 +249,22 @@ fn write_recording_without_cut_depth(path: &Path) {
     std::fs::write(path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
 }
 
+/// The session's events, as debug text, until one contains `text` (or 10 s have passed).
+fn events_until(session: &mut servosight::ui::Session, text: &str) -> Vec<String> {
+    use servosight::ui::session::SessionUpdate;
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut events = Vec::new();
+    while Instant::now() < deadline && !events.iter().any(|e: &String| e.contains(text)) {
+        while let Some(update) = session.try_recv() {
+            if let SessionUpdate::Event(event) = update {
+                events.push(format!("{event:?}"));
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    events
+}
+
 /// An HMI session on `source` with the shipped twin profile, its files in `dir`.
 fn twin_profile_session(dir: &Path, source: servosight::ui::SourceSpec) -> servosight::ui::Session {
     servosight::ui::Session::start(servosight::ui::SessionConfig {
@@ -327,7 +343,6 @@ fn the_hmi_session_on_the_embedded_twin_scores_abnormality() {
 fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
     use servosight::signal::channel::CUT_DEPTH;
     use servosight::ui::SourceSpec;
-    use servosight::ui::session::SessionUpdate;
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("old.csv");
     write_recording_without_cut_depth(&path);
@@ -338,16 +353,7 @@ fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
             options: ReplayOptions::default(),
         },
     );
-    let deadline = Instant::now() + Duration::from_secs(10);
-    let mut events = Vec::new();
-    while Instant::now() < deadline && !events.iter().any(|e: &String| e.contains(CUT_DEPTH)) {
-        while let Some(update) = session.try_recv() {
-            if let SessionUpdate::Event(event) = update {
-                events.push(format!("{event:?}"));
-            }
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    let events = events_until(&mut session, CUT_DEPTH);
     for axis in ["X", "S"] {
         assert!(
             events.iter().any(|e| e.contains(&format!(
@@ -367,7 +373,6 @@ fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
     use servosight::link::register_map;
     use servosight::signal::channel::AMBIENT;
     use servosight::ui::SourceSpec;
-    use servosight::ui::session::SessionUpdate;
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("warm.csv");
     let names = register_map::sample_columns();
@@ -396,16 +401,7 @@ fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
     );
     let said =
         "estimators: X: the machine was warm at the first frame (stator 2.0 K above the room)";
-    let deadline = Instant::now() + Duration::from_secs(10);
-    let mut events = Vec::new();
-    while Instant::now() < deadline && !events.iter().any(|e: &String| e.contains(said)) {
-        while let Some(update) = session.try_recv() {
-            if let SessionUpdate::Event(event) = update {
-                events.push(format!("{event:?}"));
-            }
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    let events = events_until(&mut session, said);
     let warm: Vec<&String> = events.iter().filter(|e| e.contains(said)).collect();
     assert_eq!(warm.len(), 1, "said once: {events:?}");
     assert!(warm[0].contains("the profile's warm start"), "{}", warm[0]);
