@@ -676,6 +676,28 @@ fn a_dry_shop_with_a_steady_room_calibrates_without_coolant_or_room_terms() {
     );
 }
 
+/// The recording at `path` from `from_s` on (its metadata and header kept), written to `out`:
+/// a recording that starts mid-shift.
+fn rows_from(path: &std::path::Path, out: &std::path::Path, from_s: f64) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut past_header = false;
+    let kept: String = text
+        .lines()
+        .filter(|line| {
+            let keep = line.starts_with('#')
+                || !past_header
+                || line
+                    .split(',')
+                    .next()
+                    .is_some_and(|t| t.parse::<f64>().unwrap() >= from_s);
+            past_header |= line.starts_with("time_s");
+            keep
+        })
+        .map(|line| format!("{line}\n"))
+        .collect();
+    std::fs::write(out, kept).unwrap();
+}
+
 /// A recording that starts mid-shift, on a machine that has run for an hour and a half, reads
 /// the bearings and the nut from its first row: the shipped profile's warm start seeds their
 /// heat from the stator's excess over the room (docs/accuracy.md, *A recording that starts
@@ -689,24 +711,8 @@ fn a_recording_that_starts_mid_shift_reads_warm_parts_from_its_first_row() {
         "shift.csv",
         &["--scenario", "production", "--hours", "4", "--seed", "11"],
     );
-    let text = std::fs::read_to_string(&shift).unwrap();
-    let mut past_header = false;
-    let from_mid_shift: String = text
-        .lines()
-        .filter(|line| {
-            let keep = line.starts_with('#')
-                || !past_header
-                || line
-                    .split(',')
-                    .next()
-                    .is_some_and(|t| t.parse::<f64>().unwrap() >= 5400.0);
-            past_header |= line.starts_with("time_s");
-            keep
-        })
-        .map(|line| format!("{line}\n"))
-        .collect();
     let recording = dir.path().join("from-mid-shift.csv");
-    std::fs::write(&recording, from_mid_shift).unwrap();
+    rows_from(&shift, &recording, 5400.0);
     let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
     let profile_text = std::fs::read_to_string(&shipped).unwrap();
     // The shipped profile as calibrated before warm starts existed: every `warm_start` table
@@ -774,4 +780,52 @@ fn a_recording_that_starts_mid_shift_reads_warm_parts_from_its_first_row() {
         "at rest: front {front}, back {back}, nut {nut}"
     );
     assert!(notes.contains("the profile has no warm start"), "{notes}");
+}
+
+/// Calibration fits every part's warm start, and says which calibration recording starts on a
+/// warm machine (its heat terms are accumulated from rest at its first row, so it biases the
+/// heat models) and which does not.
+#[test]
+fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = simulate(
+        dir.path(),
+        "db.csv",
+        &["--scenario", "doe", "--hours", "4", "--seed", "5"],
+    );
+    let shift = simulate(
+        dir.path(),
+        "shift.csv",
+        &["--scenario", "production", "--hours", "3", "--seed", "2"],
+    );
+    let experiment = dir.path().join("exp-from-mid-shift.csv");
+    rows_from(&shift, &experiment, 5400.0);
+    let profile = dir.path().join("profile.toml");
+    let run = servosight(&[
+        "calibrate",
+        "--database",
+        arg(&db),
+        "--experiments",
+        arg(&experiment),
+        "-o",
+        arg(&profile),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let err = stderr(&run);
+    let warned: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("starts on a warm machine"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(
+        warned[0].contains("exp-from-mid-shift.csv") && warned[0].contains("(X stator "),
+        "{err}"
+    );
+    let text = std::fs::read_to_string(&profile).unwrap();
+    for part in ["front_bearing_temp", "back_bearing_temp", "nut_temp"] {
+        assert!(
+            text.contains(&format!("[calibration.axes.X.{part}.warm_start]")),
+            "{part}: {text}"
+        );
+    }
 }

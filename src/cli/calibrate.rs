@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs, repeated};
 use anyhow::Context;
-use servosight::estimators::calibration::{CalibrationReport, CorrectionForm, calibrate};
+use servosight::estimators::calibration::{
+    CalibrationReport, CorrectionForm, calibrate, warm_at_first_row,
+};
 use servosight::estimators::models::{AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S};
 use servosight::profile::MachineProfile;
 use servosight::signal::{Recording, read_recording};
@@ -66,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     profile.validate("the calibrated profile")?;
     profile.save(&args.output)?;
     warn_of_weak_models(&report, &database);
+    warn_of_warm_starts(&profile, database.iter().chain(&experiments));
     emit_report(args.json.as_deref(), &report, || {
         outln!(
             "{:<34} {:>8} {:>8} {:>8} {:>12}  equation",
@@ -145,6 +148,32 @@ fn warn_of_weak_models(report: &CalibrationReport, database: &[Recording]) {
             "warning: {} predicts its held-out blocks poorly (CV R² {:.3}): {why}; check its \
              estimates before trusting them",
             m.estimate, m.cv_r2
+        );
+    }
+}
+
+/// A recording that starts on a warm machine biases the heat models (every heat term is
+/// accumulated from rest at its first row): said on stderr, naming the recording and the axes.
+fn warn_of_warm_starts<'a>(
+    profile: &MachineProfile,
+    recordings: impl Iterator<Item = &'a Recording>,
+) {
+    for recording in recordings {
+        let warm = warm_at_first_row(profile, recording);
+        if warm.is_empty() {
+            continue;
+        }
+        let axes: Vec<String> = warm
+            .iter()
+            .map(|(axis, excess)| format!("{axis} stator {excess:.1} K above the room"))
+            .collect();
+        eprintln!(
+            "warning: {} starts on a warm machine ({}): calibration accumulates the heat of \
+             every model from rest at a recording's first row, so the heat models are fitted to \
+             heat this recording does not show; calibrate on recordings that start after a long \
+             stop",
+            recording.source(),
+            axes.join(", ")
         );
     }
 }

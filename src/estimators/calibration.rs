@@ -31,7 +31,8 @@ use super::models::{
     AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
     BED_LAG_TAUS_S, COOLANT_LAG_FEATURES, Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES,
     ElongationModel, FAST_HEAT_DIVISOR, FAST_HEAT_FEATURES, HeatModel, IDEAL_TORQUE_FEATURES,
-    LinearModel, PART_ACCUMULATIONS, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S, WarmStart,
+    LinearModel, PART_ACCUMULATIONS, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S, WARM_START_FLOOR_K,
+    WarmStart,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
@@ -264,6 +265,29 @@ fn held_out_errors(blocks: &[(&[f64], &[f64])], form: CorrectionForm) -> Option<
 pub struct CalibrationReport {
     /// One entry per fitted model.
     pub models: Vec<ModelReport>,
+}
+
+/// The axes of `profile` whose stator stood more than [`WARM_START_FLOOR_K`] above the room in
+/// the first row of `recording` where both are known, with that excess. Calibration accumulates
+/// every heat term from rest at a recording's first row, so a recording that starts on a warm
+/// machine fits the heat models to heat the recording does not show.
+pub fn warm_at_first_row(profile: &MachineProfile, recording: &Recording) -> Vec<(AxisId, f64)> {
+    let Some(room) = recording.try_column(AMBIENT) else {
+        return Vec::new();
+    };
+    profile
+        .axes
+        .keys()
+        .filter_map(|&axis| {
+            let stator = recording.try_column(&axis_column(axis, Quantity::StatorTemp))?;
+            let excess = stator
+                .iter()
+                .zip(room)
+                .map(|(s, r)| s - r)
+                .find(|excess| excess.is_finite())?;
+            (excess > WARM_START_FLOOR_K).then_some((axis, excess))
+        })
+        .collect()
 }
 
 /// Fits every model the profile's axes need. Returns the calibration (to store in the profile)
@@ -1939,7 +1963,6 @@ fn model_slot(column: &str, stage: Stage) -> Option<(AxisId, ModelSlot)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimators::models::WARM_START_FLOOR_K;
 
     /// A seeded stream of roughly normal numbers (sum of uniforms), unit variance.
     fn noise(seed: u64) -> impl FnMut() -> f64 {
