@@ -674,6 +674,14 @@ fn a_dry_shop_with_a_steady_room_calibrates_without_coolant_or_room_terms() {
         "{}",
         stdout(&run)
     );
+    // A steady room still measures the stator's excess: the parts have a warm start, which a
+    // recording without the room cannot use, and the run says so.
+    assert!(text.contains(".warm_start]"), "{text}");
+    assert!(
+        stdout(&run).contains("X: no `ambient_C` column: the bearing and nut heat starts at rest"),
+        "{}",
+        stdout(&run)
+    );
 }
 
 /// The recording at `path` from `from_s` on (its metadata and header kept), written to `out`:
@@ -722,7 +730,7 @@ fn a_recording_that_starts_mid_shift_reads_warm_parts_from_its_first_row() {
         .lines()
         .filter(|line| {
             if line.starts_with('[') {
-                in_warm_start = line.ends_with(".warm_start]");
+                in_warm_start = line.contains(".warm_start]") || line.contains(".warm_start.");
             }
             !in_warm_start
         })

@@ -249,16 +249,22 @@ fn write_recording_without_cut_depth(path: &Path) {
     std::fs::write(path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
 }
 
-/// The session's events, as debug text, until one contains `text` (or 10 s have passed).
-fn events_until(session: &mut servosight::ui::Session, text: &str) -> Vec<String> {
+/// The session's events, as debug text, until one contains `text` and `after` has passed
+/// since (or 10 s have passed in all).
+fn events_until(session: &mut servosight::ui::Session, text: &str, after: Duration) -> Vec<String> {
     use servosight::ui::session::SessionUpdate;
-    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut deadline = Instant::now() + Duration::from_secs(10);
+    let mut seen = false;
     let mut events = Vec::new();
-    while Instant::now() < deadline && !events.iter().any(|e: &String| e.contains(text)) {
+    while Instant::now() < deadline {
         while let Some(update) = session.try_recv() {
             if let SessionUpdate::Event(event) = update {
                 events.push(format!("{event:?}"));
             }
+        }
+        if !seen && events.iter().any(|e| e.contains(text)) {
+            seen = true;
+            deadline = deadline.min(Instant::now() + after);
         }
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -353,7 +359,7 @@ fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
             options: ReplayOptions::default(),
         },
     );
-    let events = events_until(&mut session, CUT_DEPTH);
+    let events = events_until(&mut session, CUT_DEPTH, Duration::ZERO);
     for axis in ["X", "S"] {
         assert!(
             events.iter().any(|e| e.contains(&format!(
@@ -401,7 +407,8 @@ fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
     );
     let said =
         "estimators: X: the machine was warm at the first frame (stator 2.0 K above the room)";
-    let events = events_until(&mut session, said);
+    // Kept listening while the rest of the replay arrives: said once, not once per batch.
+    let events = events_until(&mut session, said, Duration::from_secs(2));
     let warm: Vec<&String> = events.iter().filter(|e| e.contains(said)).collect();
     assert_eq!(warm.len(), 1, "said once: {events:?}");
     assert!(warm[0].contains("the profile's warm start"), "{}", warm[0]);

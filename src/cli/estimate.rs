@@ -211,6 +211,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     r.reference_noise,
                     corrected,
                     match r.reference_offset {
+                        Some(offset) if offset < 0.0 => {
+                            format!("{} + {:.4} (its first row)", r.reference, -offset)
+                        }
                         Some(offset) => format!("{} − {offset:.4} (its first row)", r.reference),
                         None => r.reference.clone(),
                     }

@@ -30,9 +30,8 @@ use super::abnormality::{self, TorqueBlock};
 use super::models::{
     AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S, AbnormalityModel, AxisModels, BED_LAG_FEATURES,
     BED_LAG_TAUS_S, COOLANT_LAG_FEATURES, Calibration, ELONGATION_FEATURES, ELONGATION_TAU_NAMES,
-    ElongationModel, FAST_HEAT_DIVISOR, FAST_HEAT_FEATURES, HeatModel, IDEAL_TORQUE_FEATURES,
-    LinearModel, PART_ACCUMULATIONS, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S, WARM_START_FLOOR_K,
-    WarmStart,
+    ElongationModel, FAST_HEAT_DIVISOR, HeatModel, IDEAL_TORQUE_FEATURES, LinearModel,
+    PART_ACCUMULATIONS, STATOR_LAG_FEATURES, STATOR_LAG_TAUS_S, WarmStart, warm_excess,
 };
 use super::pipeline::EstimatorPipeline;
 use super::streaming::{
@@ -267,7 +266,7 @@ pub struct CalibrationReport {
     pub models: Vec<ModelReport>,
 }
 
-/// The axes of `profile` whose stator stood more than [`WARM_START_FLOOR_K`] above the room in
+/// The axes of `profile` whose stator stood more than the floor above the room ([`warm_excess`]) in
 /// the first row of `recording` where both are known, with that excess. Calibration accumulates
 /// every heat term from rest at a recording's first row, so a recording that starts on a warm
 /// machine fits the heat models to heat the recording does not show.
@@ -280,12 +279,11 @@ pub fn warm_at_first_row(profile: &MachineProfile, recording: &Recording) -> Vec
         .keys()
         .filter_map(|&axis| {
             let stator = recording.try_column(&axis_column(axis, Quantity::StatorTemp))?;
-            let excess = stator
+            let (&stator_C, &room_C) = stator
                 .iter()
                 .zip(room)
-                .map(|(s, r)| s - r)
-                .find(|excess| excess.is_finite())?;
-            (excess > WARM_START_FLOOR_K).then_some((axis, excess))
+                .find(|(s, r)| (*s - *r).is_finite())?;
+            warm_excess(stator_C, room_C).map(|excess| (axis, excess))
         })
         .collect()
 }
@@ -1271,19 +1269,9 @@ fn fit_heat_model(
                     }
                 };
                 let stator = r.column_for(&stator_name, &estimate)?.to_vec();
-                let accumulated = |name: &str, input: fn(&HeatInputs) -> f64, tau: f64| {
-                    let series: Vec<f64> = inputs.iter().map(input).collect();
-                    (name.to_string(), accumulate(r.time(), &series, tau))
-                };
-                let heat = accumulated("heat", |i| i.drag, tau);
-                let load_heat = accumulated("load_heat", |i| i.load, tau);
-                let churning_heat = accumulated("churning_heat", |i| i.churning, tau);
-                let [heat_fast, load_heat_fast] = FAST_HEAT_FEATURES;
-                let fast_tau = tau / FAST_HEAT_DIVISOR;
-                let fast_heat = [
-                    accumulated(heat_fast, |i| i.drag, fast_tau),
-                    accumulated(load_heat_fast, |i| i.load, fast_tau),
-                ];
+                let [heat, load_heat, churning_heat, heat_fast, load_heat_fast] =
+                    part_accumulation_columns(r.time(), inputs, tau);
+                let fast_heat = [heat_fast, load_heat_fast];
                 let stator = ("stator".to_string(), stator);
                 let mut candidates = Vec::new();
                 for base in [
@@ -1333,7 +1321,12 @@ fn fit_heat_model(
         message: "no time constant could be fitted".into(),
     })?;
     let rate = database[0].sample_rate_hz().unwrap_or(1.0);
-    let warm_start = if fit.has_ambient {
+    // The excess needs the room recorded, not varying: a steady room is still the reference.
+    let room_recorded = database
+        .iter()
+        .chain(experiments)
+        .all(|r| r.try_column(AMBIENT).is_some());
+    let warm_start = if room_recorded {
         let recordings = database.iter().zip(&db_inputs);
         let recordings = recordings.chain(experiments.iter().zip(&experiment_inputs));
         fit_part_warm_start(recordings, &stator_name, tau, &estimate)?
@@ -1359,8 +1352,33 @@ fn fit_heat_model(
     Ok((model, report))
 }
 
+/// A part's accumulations over a recording at `tau_s`, in the order and with the names of
+/// [`PART_ACCUMULATIONS`]: the drag, load and churning heat over τ, the drag and load heat over
+/// τ / [`FAST_HEAT_DIVISOR`] (what [`ComponentThermalEstimator`] accumulates).
+fn part_accumulation_columns(
+    time: &[f64],
+    inputs: &[HeatInputs],
+    tau_s: f64,
+) -> [(String, Vec<f64>); PART_ACCUMULATIONS.len()] {
+    type Input = fn(&HeatInputs) -> f64;
+    let fast_tau_s = tau_s / FAST_HEAT_DIVISOR;
+    let sources: [(Input, f64); PART_ACCUMULATIONS.len()] = [
+        (|i| i.drag, tau_s),
+        (|i| i.load, tau_s),
+        (|i| i.churning, tau_s),
+        (|i| i.drag, fast_tau_s),
+        (|i| i.load, fast_tau_s),
+    ];
+    let mut feature = PART_ACCUMULATIONS.iter();
+    sources.map(|(input, tau)| {
+        let series: Vec<f64> = inputs.iter().map(input).collect();
+        let name = feature.next().map_or_else(String::new, |f| f.to_string());
+        (name, accumulate(time, &series, tau))
+    })
+}
+
 /// The stator's excess over the room in each row of a recording, as a [`WarmStart`] counts it.
-fn counted_excess(
+fn counted_excess_column(
     recording: &Recording,
     stator: &str,
     purpose: &str,
@@ -1370,68 +1388,56 @@ fn counted_excess(
     Ok(stator
         .iter()
         .zip(room)
-        .map(|(s, r)| WarmStart::counted_excess(s - r))
+        .map(|(&s, &r)| WarmStart::counted_excess(s, r))
         .collect())
 }
 
 /// A [`WarmStart`]: each accumulation over the calibration recordings, fitted through the origin
-/// on the counted stator excess of the same rows. Each item is one recording's excess
-/// ([`counted_excess`]) and its accumulations by feature. None where the stator never rose
-/// past the floor: the recordings then say nothing about a warm machine.
+/// on the counted stator excess of the same rows (those where the accumulation is a number).
+/// Each item is one recording's excess ([`counted_excess_column`]) and its accumulations by
+/// feature. None where the stator never rose past the floor: the recordings then say nothing
+/// about a warm machine.
 fn fit_warm_start(recordings: impl IntoIterator<Item = (Vec<f64>, Columns)>) -> Option<WarmStart> {
-    let mut excess_squared = 0.0;
-    let mut cross: BTreeMap<String, f64> = BTreeMap::new();
+    let mut largest_excess_K: f64 = 0.0;
+    // Per feature: Σ excess·accumulation and Σ excess² over the same rows.
+    let mut sums: BTreeMap<String, (f64, f64)> = BTreeMap::new();
     for (excess, accumulations) in recordings {
-        excess_squared += excess.iter().map(|e| e * e).sum::<f64>();
+        largest_excess_K = excess.iter().copied().fold(largest_excess_K, f64::max);
         for (feature, accumulated) in accumulations {
-            *cross.entry(feature).or_default() += excess
+            let (cross, squared) = sums.entry(feature).or_default();
+            for (e, a) in excess
                 .iter()
                 .zip(&accumulated)
                 .filter(|(_, a)| a.is_finite())
-                .map(|(e, a)| e * a)
-                .sum::<f64>();
+            {
+                *cross += e * a;
+                *squared += e * e;
+            }
         }
     }
-    (excess_squared > 0.0).then(|| {
-        WarmStart::new(
-            cross
-                .into_iter()
-                .map(|(feature, c)| (feature, (c / excess_squared).max(0.0))),
-        )
+    (largest_excess_K > 0.0).then(|| WarmStart {
+        largest_excess_K,
+        per_K: sums
+            .into_iter()
+            .map(|(feature, (cross, squared))| {
+                let per_K = if squared > 0.0 { cross / squared } else { 0.0 };
+                (feature, per_K.max(0.0))
+            })
+            .collect(),
     })
 }
 
-/// A part's [`WarmStart`] over its accumulations at `tau_s` (the drag and load heat also at τ /
-/// [`FAST_HEAT_DIVISOR`]).
+/// A part's [`WarmStart`] over its accumulations at `tau_s` ([`part_accumulation_columns`]).
 fn fit_part_warm_start<'a>(
     recordings: impl Iterator<Item = (&'a Recording, &'a Vec<HeatInputs>)>,
     stator: &str,
     tau_s: f64,
     purpose: &str,
 ) -> Result<Option<WarmStart>, CalibrationError> {
-    type Input = fn(&HeatInputs) -> f64;
-    let fast_tau_s = tau_s / FAST_HEAT_DIVISOR;
-    let accumulations: [(Input, f64); PART_ACCUMULATIONS.len()] = [
-        (|i| i.drag, tau_s),
-        (|i| i.load, tau_s),
-        (|i| i.churning, tau_s),
-        (|i| i.drag, fast_tau_s),
-        (|i| i.load, fast_tau_s),
-    ];
     let per_recording = recordings
         .map(|(recording, inputs)| {
-            let columns = PART_ACCUMULATIONS
-                .iter()
-                .zip(&accumulations)
-                .map(|(feature, (input, tau))| {
-                    let series: Vec<f64> = inputs.iter().map(input).collect();
-                    (
-                        feature.to_string(),
-                        accumulate(recording.time(), &series, *tau),
-                    )
-                })
-                .collect();
-            Ok((counted_excess(recording, stator, purpose)?, columns))
+            let columns = part_accumulation_columns(recording.time(), inputs, tau_s).into();
+            Ok((counted_excess_column(recording, stator, purpose)?, columns))
         })
         .collect::<Result<Vec<_>, CalibrationError>>()?;
     Ok(fit_warm_start(per_recording))
@@ -1963,6 +1969,7 @@ fn model_slot(column: &str, stage: Stage) -> Option<(AxisId, ModelSlot)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimators::models::WARM_START_FLOOR_K;
 
     /// A seeded stream of roughly normal numbers (sum of uniforms), unit variance.
     fn noise(seed: u64) -> impl FnMut() -> f64 {
@@ -2409,6 +2416,11 @@ mod tests {
         // Over τ/4 the heat leads the stator: a ratio, but not the same one.
         assert!(fitted.per_K("heat_quarter_tau") > 0.5, "{fitted:?}");
         fitted.check(&PART_ACCUMULATIONS).unwrap();
+        let largest = 2.0 * accumulated.iter().copied().fold(0.0, f64::max);
+        assert!(
+            (fitted.largest_excess_K - largest).abs() < 1e-12,
+            "{fitted:?}"
+        );
         let at_rest = recording_with(&|_| WARM_START_FLOOR_K * 0.9);
         let none = fit_part_warm_start([(&at_rest, &inputs)].into_iter(), &stator, tau_s, "t");
         assert_eq!(none.unwrap(), None);

@@ -277,9 +277,16 @@ pub struct HeatModel {
 /// The stator's excess over the room that a [`WarmStart`] reads as none: a stator sensor and a
 /// room sensor disagree by a few tenths of a kelvin on a machine at rest (noise, offsets), and
 /// a seed from that would start a cold machine warm. Seeds and their fit both count only the
-/// excess above it; a feed axis of the twin is 1.0–1.9 K above the room after an hour of
+/// excess above it; the twin's X stator is 1.0–1.9 K above the room after an hour or more of
 /// production (docs/accuracy.md, *A recording that starts mid-shift*).
 pub const WARM_START_FLOOR_K: f64 = 0.5;
+
+/// The stator's excess over the room when it is above [`WARM_START_FLOOR_K`]: the machine was
+/// warm. None for a stator within the floor of the room, or a reading that is not a number.
+pub fn warm_excess(stator_C: f64, room_C: f64) -> Option<f64> {
+    let excess = stator_C - room_C;
+    (excess.is_finite() && excess > WARM_START_FLOOR_K).then_some(excess)
+}
 
 /// The accumulations of a bearing's or the nut's heat model, by the feature that reads each
 /// ([`HEAT_FEATURES`]): what a [`WarmStart`] of a part may seed.
@@ -304,42 +311,50 @@ pub const PART_ACCUMULATIONS: [&str; 5] = [
 /// spindle elongation has none: its heat bank seeded so read worse, docs/accuracy.md.) A stator
 /// within the floor of the room seeds nothing, so a machine at rest starts as
 /// before.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-#[serde(transparent)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct WarmStart {
-    per_K: BTreeMap<String, f64>,
+    /// The largest counted excess the calibration recordings showed, K: a larger one (a
+    /// hotter machine than any calibrated, or a spiked first reading) seeds as this one, since
+    /// the fit says nothing beyond it.
+    pub largest_excess_K: f64,
+    /// Accumulated value per kelvin of counted excess, by the feature that reads it.
+    pub per_K: BTreeMap<String, f64>,
 }
 
 impl WarmStart {
-    /// A warm start from (feature, accumulated value per kelvin) pairs.
-    pub fn new(per_K: impl IntoIterator<Item = (String, f64)>) -> Self {
-        WarmStart {
-            per_K: per_K.into_iter().collect(),
-        }
-    }
-
     /// The accumulated value per kelvin for `feature` (zero for one it does not name).
     pub fn per_K(&self, feature: &str) -> f64 {
         self.per_K.get(feature).copied().unwrap_or(0.0)
     }
 
-    /// The excess a warm start counts for a stator `excess_K` above the room: what is above
-    /// [`WARM_START_FLOOR_K`], and zero for an excess that is not a number (no room reading).
-    pub fn counted_excess(excess_K: f64) -> f64 {
-        let above = excess_K - WARM_START_FLOOR_K;
-        if above > 0.0 { above } else { 0.0 }
+    /// The excess a warm start counts for a stator `stator_C` and a room `room_C`: what is
+    /// above [`WARM_START_FLOOR_K`] ([`warm_excess`]), zero for a machine that was not warm.
+    pub fn counted_excess(stator_C: f64, room_C: f64) -> f64 {
+        warm_excess(stator_C, room_C).map_or(0.0, |excess| excess - WARM_START_FLOOR_K)
     }
 
-    /// The starting values of `features`' accumulations for a stator `excess_K` above the room
-    /// ([`WarmStart::counted_excess`]).
-    pub fn seeds<const N: usize>(&self, features: &[&str; N], excess_K: f64) -> [f64; N] {
-        let excess = Self::counted_excess(excess_K);
+    /// The starting values of `features`' accumulations for a stator `stator_C` and a room
+    /// `room_C` ([`WarmStart::counted_excess`], at most [`WarmStart::largest_excess_K`]).
+    pub fn seeds<const N: usize>(
+        &self,
+        features: &[&str; N],
+        stator_C: f64,
+        room_C: f64,
+    ) -> [f64; N] {
+        let excess = Self::counted_excess(stator_C, room_C).min(self.largest_excess_K);
         features.map(|feature| self.per_K(feature) * excess)
     }
 
     /// Checks that every feature named is one of `accumulations` and every value a
     /// non-negative number (heat never accumulates below zero).
     pub fn check(&self, accumulations: &[&str]) -> Result<(), String> {
+        if !(self.largest_excess_K.is_finite() && self.largest_excess_K > 0.0) {
+            return Err(format!(
+                "largest_excess_K must be a positive number, not {}",
+                self.largest_excess_K
+            ));
+        }
         for (feature, value) in &self.per_K {
             if !accumulations.contains(&feature.as_str()) {
                 return Err(format!(

@@ -9,6 +9,7 @@ use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
 use super::models::{
     AMBIENT_LAG_FEATURES, AxisModels, BED_LAG_TAUS_S, STATOR_LAG_TAUS_S, WARM_START_FLOOR_K,
+    warm_excess,
 };
 use super::streaming::{
     BedLags, ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator,
@@ -404,6 +405,22 @@ impl EstimatorPipeline {
                 column,
             });
         }
+        if ambient.is_none() {
+            for axis in &feed {
+                let has_warm_start = [&axis.front, &axis.back, &axis.nut]
+                    .into_iter()
+                    .flatten()
+                    .any(|p| p.warm_start().is_some());
+                if has_warm_start {
+                    notes.push(format!(
+                        "{}: no `{AMBIENT}` column: the bearing and nut heat starts at rest \
+                         however warm the machine is (the profile's warm start reads the \
+                         stator's excess over the room)",
+                        axis.axis
+                    ));
+                }
+            }
+        }
         Ok(EstimatorPipeline {
             feed,
             spindles,
@@ -557,38 +574,59 @@ impl EstimatorPipeline {
     #[cold]
     fn note_warm_start(&mut self, frame: &[f64], ambient_C: f64) {
         let mut notes = Vec::new();
-        // Also skips an excess that is not a number (no room or stator reading).
-        let warm_by = |stator: usize| {
-            let excess = frame[stator] - ambient_C;
-            (excess > WARM_START_FLOOR_K).then_some(excess)
-        };
         for axis in &self.feed {
-            let parts: Vec<&ComponentThermalEstimator> = [&axis.front, &axis.back, &axis.nut]
-                .into_iter()
-                .flatten()
-                .collect();
-            let (Some(excess), false) = (warm_by(axis.channels.stator), parts.is_empty()) else {
+            let Some(excess) = warm_excess(frame[axis.channels.stator], ambient_C) else {
                 continue;
             };
+            let parts = [
+                ("front bearing", &axis.front),
+                ("back bearing", &axis.back),
+                ("nut", &axis.nut),
+            ];
+            let present = parts
+                .iter()
+                .filter_map(|(name, p)| Some((*name, p.as_ref()?)));
+            let (seeded, at_rest): (Vec<_>, Vec<_>) =
+                present.partition(|(_, p)| p.warm_start().is_some());
+            let names = |list: &[(&str, &ComponentThermalEstimator)]| {
+                list.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+            };
             let a = axis.axis;
-            notes.push(if parts.iter().all(|p| p.starts_warm()) {
-                format!(
-                    "{a}: the machine was warm at the first frame (stator {excess:.1} K above the \
-                     room): the bearing and nut heat started where the profile's warm start puts \
-                     it, an estimate from the stator alone, until the parts' own heat takes over \
-                     (about two time constants)"
-                )
-            } else {
-                format!(
-                    "{a}: the machine was warm at the first frame (stator {excess:.1} K above the \
-                     room), but the profile has no warm start: the bearing and nut heat started \
-                     at rest and reads low until it has built up (about two time constants); \
-                     calibrate the profile again to get one"
-                )
+            let warm = format!(
+                "{a}: the machine was warm at the first frame (stator {excess:.1} K above the room)"
+            );
+            let beyond = seeded
+                .iter()
+                .find_map(|(_, p)| p.warm_start())
+                .map(|w| w.largest_excess_K + WARM_START_FLOOR_K)
+                .filter(|largest| excess > *largest)
+                .map_or_else(String::new, |largest| {
+                    format!(
+                        "; beyond the {largest:.1} K the calibration recordings showed, it was \
+                         seeded as for {largest:.1} K"
+                    )
+                });
+            let seeded_note = format!(
+                "the {} heat started where the profile's warm start puts it, an estimate from the \
+                 stator alone, until the parts' own heat takes over (about two time \
+                 constants){beyond}",
+                names(&seeded)
+            );
+            let at_rest_note = format!(
+                "the profile has no warm start for the {} heat, which started at rest and reads \
+                 low until it has built up (about two time constants); calibrate the profile \
+                 again to get one",
+                names(&at_rest)
+            );
+            notes.push(match (seeded.is_empty(), at_rest.is_empty()) {
+                (true, true) => continue,
+                (false, true) => format!("{warm}: {seeded_note}"),
+                (true, false) => format!("{warm}, but {at_rest_note}"),
+                (false, false) => format!("{warm}: {seeded_note}; but {at_rest_note}"),
             });
         }
         for spindle in self.spindles.iter().filter(|s| s.elongation.is_some()) {
-            if let Some(excess) = warm_by(spindle.channels.stator) {
+            if let Some(excess) = warm_excess(frame[spindle.channels.stator], ambient_C) {
                 notes.push(format!(
                     "{}: the spindle was warm at the first frame (stator {excess:.1} K above the \
                      room): its elongation model's heat starts at rest, so for the first hours \

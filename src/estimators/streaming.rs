@@ -367,7 +367,8 @@ impl ComponentThermalEstimator {
         };
         let [heat, load_heat, churning_heat, heat_fast, load_heat_fast] = warm.seeds(
             &PART_ACCUMULATIONS,
-            surroundings.stator_C - surroundings.room.ambient_C,
+            surroundings.stator_C,
+            surroundings.room.ambient_C,
         );
         self.heat.settle_at(heat);
         self.load_heat.settle_at(load_heat);
@@ -378,9 +379,9 @@ impl ComponentThermalEstimator {
         }
     }
 
-    /// True if the model seeds its heat on a warm machine ([`WarmStart`]).
-    pub fn starts_warm(&self) -> bool {
-        self.warm_start.is_some()
+    /// The model's [`WarmStart`], if it has one (it seeds the heat on a warm machine).
+    pub fn warm_start(&self) -> Option<&WarmStart> {
+        self.warm_start.as_ref()
     }
 
     /// °C after one sample, from the component's torque, the axis's sampled speed (as
@@ -1189,16 +1190,19 @@ mod tests {
 
     /// A part whose estimator starts on a warm machine starts its heat where the profile's
     /// warm start puts it for the stator's excess over the room in the first sample, and then
-    /// accumulates from there; a stator within [`WARM_START_FLOOR_K`] of the room, or no room
-    /// reading, starts it at rest; and only the first sample seeds.
+    /// accumulates from there, never beyond the largest excess calibration saw; a stator within
+    /// [`WARM_START_FLOOR_K`] of the room, or a reading that is not a number, starts it at rest;
+    /// and only the first sample seeds.
     #[test]
     fn a_part_started_on_a_warm_machine_starts_with_heat_in_it() {
-        let warm_start = WarmStart::new(
-            PART_ACCUMULATIONS
+        let warm_start = WarmStart {
+            largest_excess_K: 4.0,
+            per_K: PART_ACCUMULATIONS
                 .iter()
                 .zip([0.1, 0.01, 0.2, 0.3, 0.02])
-                .map(|(name, per_K)| (name.to_string(), per_K)),
-        );
+                .map(|(name, per_K)| (name.to_string(), per_K))
+                .collect(),
+        };
         let model = HeatModel {
             tau_s: 1800.0,
             c_bh: HeatAccumulator::c_bh_at_rate(1800.0, 1.0),
@@ -1227,7 +1231,7 @@ mod tests {
         let seeded =
             20.0 + counted * (0.1 + 10.0 * 0.01 + 100.0 * 0.2 + 1000.0 * 0.3 + 10000.0 * 0.02);
         let mut part = ComponentThermalEstimator::new(&model).unwrap();
-        assert!(part.starts_warm());
+        assert!(part.warm_start().is_some());
         let first = part.update(0.0, &standing, &at(24.0, 22.0), 0.0);
         assert!((first - seeded).abs() < 1e-9, "{first} against {seeded}");
         assert!((part.heat() - 0.1 * counted).abs() < 1e-12);
@@ -1243,12 +1247,18 @@ mod tests {
             (later - expected).abs() < 1e-9,
             "{later} against {expected}"
         );
+        // A stator hotter than any the calibration saw (or a spiked first reading) seeds as
+        // the hottest it saw: 4 K above the floor.
+        let mut part = ComponentThermalEstimator::new(&model).unwrap();
+        part.update(0.0, &standing, &at(80.0, 22.0), 0.0);
+        assert!((part.heat() - 0.1 * 4.0).abs() < 1e-12, "{}", part.heat());
         let within_floor = 22.0 + WARM_START_FLOOR_K;
         for (stator, ambient) in [
             (21.0, 22.0),
             (within_floor, 22.0),
             (24.0, f64::NAN),
             (f64::NAN, 22.0),
+            (f64::INFINITY, 22.0),
         ] {
             let mut part = ComponentThermalEstimator::new(&model).unwrap();
             part.update(0.0, &standing, &at(stator, ambient), 0.0);
@@ -1260,7 +1270,7 @@ mod tests {
             ..model
         };
         let mut part = ComponentThermalEstimator::new(&cold).unwrap();
-        assert!(!part.starts_warm());
+        assert!(part.warm_start().is_none());
         assert_eq!(part.update(0.0, &standing, &at(30.0, 22.0), 0.0), 20.0);
     }
 
