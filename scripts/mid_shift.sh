@@ -17,7 +17,8 @@ S=target/release/servosight
 P=assets/it25-twin.toml
 
 # The shipped profile without its `[...warm_start]` tables.
-awk '/^\[/ { skip = ($0 ~ /\.warm_start\]$/) } !skip' "$P" > "$out/at-rest.toml"
+awk '/^\[/ { skip = ($0 ~ /\.warm_start(\.per_K)?\][[:space:]]*(#.*)?\r?$/) } !skip' "$P" \
+    > "$out/at-rest.toml"
 for day in 7 8 9; do
     $S simulate --scenario production --hours 10 --seed "$day" -o "$out/day$day.csv" 2> /dev/null
     for hour in 1 2 3 4 5 6 7 8; do
@@ -51,11 +52,17 @@ for estimate in estimates:
         for path in sorted(glob.glob(f"{sys.argv[1]}/accuracy-{profile}-day*-from*h.json")):
             rows += [r for r in json.load(open(path))["accuracy"]
                      if r["estimate"].split("#")[0] == estimate]
-        r2 = [r["r2"] for r in rows]
-        rmse = [r["rmse"] for r in rows]
-        clean = [r["r2_noise_corrected"] for r in rows if "r2_noise_corrected" in r]
+        # R² is null where the reference did not vary; noise-free R² is absent where it varied
+        # less than its noise.
+        r2 = [r["r2"] for r in rows if r.get("r2") is not None]
+        rmse = [r["rmse"] for r in rows if r.get("rmse") is not None]
+        clean = [r["r2_noise_corrected"] for r in rows if r.get("r2_noise_corrected") is not None]
         name = "warm start" if profile == "warm" else "at rest"
+        if not r2:
+            print(f"| {estimate} | {name} | no cut scored it | | | | | |")
+            continue
+        clean_median = f"{statistics.median(clean):.3f}" if clean else "—"
         print(f"| {estimate} | {name} | {statistics.median(r2):.3f} | {statistics.fmean(r2):.3f} "
               f"| {min(r2):.3f} | {statistics.median(rmse):.3f} | {max(rmse):.3f} "
-              f"| {statistics.median(clean):.3f} |")
+              f"| {clean_median} |")
 PY
