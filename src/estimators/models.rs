@@ -334,15 +334,21 @@ impl WarmStart {
         warm_excess(stator_C, room_C).map_or(0.0, |excess| excess - WARM_START_FLOOR_K)
     }
 
+    /// The excess the seeds are made for: [`WarmStart::counted_excess`], at most
+    /// [`WarmStart::largest_excess_K`].
+    pub fn seeded_excess(&self, stator_C: f64, room_C: f64) -> f64 {
+        Self::counted_excess(stator_C, room_C).min(self.largest_excess_K)
+    }
+
     /// The starting values of `features`' accumulations for a stator `stator_C` and a room
-    /// `room_C` ([`WarmStart::counted_excess`], at most [`WarmStart::largest_excess_K`]).
+    /// `room_C` ([`WarmStart::seeded_excess`]).
     pub fn seeds<const N: usize>(
         &self,
         features: &[&str; N],
         stator_C: f64,
         room_C: f64,
     ) -> [f64; N] {
-        let excess = Self::counted_excess(stator_C, room_C).min(self.largest_excess_K);
+        let excess = self.seeded_excess(stator_C, room_C);
         features.map(|feature| self.per_K(feature) * excess)
     }
 

@@ -9,7 +9,7 @@ use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
 use super::abnormality::{AbnormalityScore, MotorAbnormalityEstimator, TorqueSample};
 use super::models::{
     AMBIENT_LAG_FEATURES, AxisModels, BED_LAG_TAUS_S, STATOR_LAG_TAUS_S, WARM_START_FLOOR_K,
-    warm_excess,
+    WarmStart, warm_excess,
 };
 use super::streaming::{
     BedLags, ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator,
@@ -172,6 +172,19 @@ struct FeedAxisPipeline {
     /// What the straightness models read this frame (kept for calibration).
     thermal_state: StraightnessInputs,
     estimate: FeedAxisEstimate,
+}
+
+impl FeedAxisPipeline {
+    /// The parts whose heat the axis estimates, named.
+    fn parts(&self) -> impl Iterator<Item = (&'static str, &ComponentThermalEstimator)> {
+        [
+            ("front bearing", &self.front),
+            ("back bearing", &self.back),
+            ("nut", &self.nut),
+        ]
+        .into_iter()
+        .filter_map(|(name, part)| Some((name, part.as_ref()?)))
+    }
 }
 
 struct SpindlePipeline {
@@ -407,11 +420,7 @@ impl EstimatorPipeline {
         }
         if ambient.is_none() {
             for axis in &feed {
-                let has_warm_start = [&axis.front, &axis.back, &axis.nut]
-                    .into_iter()
-                    .flatten()
-                    .any(|p| p.warm_start().is_some());
-                if has_warm_start {
+                if axis.parts().any(|(_, p)| p.warm_start().is_some()) {
                     notes.push(format!(
                         "{}: no `{AMBIENT}` column: the bearing and nut heat starts at rest \
                          however warm the machine is (the profile's warm start reads the \
@@ -575,19 +584,15 @@ impl EstimatorPipeline {
     fn note_warm_start(&mut self, frame: &[f64], ambient_C: f64) {
         let mut notes = Vec::new();
         for axis in &self.feed {
-            let Some(excess) = warm_excess(frame[axis.channels.stator], ambient_C) else {
+            let stator_C = frame[axis.channels.stator];
+            let Some(excess) = warm_excess(stator_C, ambient_C) else {
                 continue;
             };
-            let parts = [
-                ("front bearing", &axis.front),
-                ("back bearing", &axis.back),
-                ("nut", &axis.nut),
-            ];
-            let present = parts
-                .iter()
-                .filter_map(|(name, p)| Some((*name, p.as_ref()?)));
             let (seeded, at_rest): (Vec<_>, Vec<_>) =
-                present.partition(|(_, p)| p.warm_start().is_some());
+                axis.parts().partition(|(_, p)| p.warm_start().is_some());
+            if seeded.is_empty() && at_rest.is_empty() {
+                continue;
+            }
             let names = |list: &[(&str, &ComponentThermalEstimator)]| {
                 list.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
             };
@@ -598,9 +603,12 @@ impl EstimatorPipeline {
             let beyond = seeded
                 .iter()
                 .find_map(|(_, p)| p.warm_start())
-                .map(|w| w.largest_excess_K + WARM_START_FLOOR_K)
-                .filter(|largest| excess > *largest)
-                .map_or_else(String::new, |largest| {
+                .filter(|w| {
+                    w.seeded_excess(stator_C, ambient_C)
+                        < WarmStart::counted_excess(stator_C, ambient_C)
+                })
+                .map_or_else(String::new, |w| {
+                    let largest = w.largest_excess_K + WARM_START_FLOOR_K;
                     format!(
                         "; beyond the {largest:.1} K the calibration recordings showed, it was \
                          seeded as for {largest:.1} K"
@@ -619,9 +627,8 @@ impl EstimatorPipeline {
                 names(&at_rest)
             );
             notes.push(match (seeded.is_empty(), at_rest.is_empty()) {
-                (true, true) => continue,
                 (false, true) => format!("{warm}: {seeded_note}"),
-                (true, false) => format!("{warm}, but {at_rest_note}"),
+                (true, _) => format!("{warm}, but {at_rest_note}"),
                 (false, false) => format!("{warm}: {seeded_note}; but {at_rest_note}"),
             });
         }

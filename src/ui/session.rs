@@ -454,18 +454,15 @@ impl Worker {
     /// Says each of the pipeline's notes not said yet as a warning event, once.
     fn say_new_notes(&mut self) {
         let notes = self.pipeline.as_ref().map_or(&[][..], |p| p.notes());
-        if notes.len() <= self.notes_said {
-            return;
-        }
-        let new: Vec<String> = notes[self.notes_said..].to_vec();
-        self.notes_said = notes.len();
-        for note in new {
+        let count = notes.len();
+        for note in notes.get(self.notes_said..).unwrap_or_default() {
             self.event(
                 EventKind::Condition,
                 Severity::Warning,
                 format!("estimators: {note}"),
             );
         }
+        self.notes_said = count;
     }
 
     /// Hands rows to the UI; when its queue is full they wait here (merged), and only beyond
