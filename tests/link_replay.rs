@@ -413,3 +413,84 @@ fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
     assert_eq!(warm.len(), 1, "said once: {events:?}");
     assert!(warm[0].contains("the profile's warm start"), "{}", warm[0]);
 }
+
+/// An HMI session that starts on a warm spindle says its elongation does not count from a
+/// known tool length (the thermal offset built on it is then withheld, tests/ui_view_models.rs),
+/// and counts from the tool measurement once the operator says the tool was measured.
+#[test]
+fn the_hmi_session_says_where_the_spindle_elongation_counts_from() {
+    use servosight::estimators::pipeline::ElongationOrigin;
+    use servosight::link::register_map;
+    use servosight::signal::channel::AMBIENT;
+    use servosight::ui::SourceSpec;
+    use servosight::ui::session::{SessionCommand, SessionUpdate};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("warm-spindle.csv");
+    let names = register_map::sample_columns();
+    let rows: Vec<String> = (0..60)
+        .map(|t| {
+            let row: Vec<String> = names
+                .iter()
+                .enumerate()
+                .map(|(i, name)| match name.as_str() {
+                    _ if i == 0 => t.to_string(),
+                    "S.stator_temp_C" => "30".to_string(),
+                    name if name == AMBIENT => "22".to_string(),
+                    _ => "1".to_string(),
+                })
+                .collect();
+            row.join(",")
+        })
+        .collect();
+    std::fs::write(&path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
+    // Ten frames a second: the replay runs for six seconds, long enough to measure the tool.
+    let mut session = twin_profile_session(
+        dir.path(),
+        SourceSpec::Replay {
+            path,
+            options: ReplayOptions {
+                speed: ReplaySpeed::Factor(10.0),
+                ..ReplayOptions::default()
+            },
+        },
+    );
+    let origin_until = |session: &mut servosight::ui::Session,
+                        wanted: &dyn Fn(&ElongationOrigin) -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        let mut seen = Vec::new();
+        while Instant::now() < deadline {
+            while let Some(update) = session.try_recv() {
+                if let SessionUpdate::ElongationOrigins(origins) = update {
+                    if let Some(origin) = origins
+                        .iter()
+                        .find(|(axis, _)| *axis == AxisId::S)
+                        .and_then(|(_, o)| *o)
+                        .filter(|o| wanted(o))
+                    {
+                        return origin;
+                    }
+                    seen.push(format!("{origins:?}"));
+                }
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        panic!("no such origin; the session said {seen:?}");
+    };
+    let started = origin_until(&mut session, &|o| {
+        matches!(o, ElongationOrigin::FirstFrameWarm { .. })
+    });
+    let ElongationOrigin::FirstFrameWarm { time_s, excess_K } = started else {
+        unreachable!("matched above")
+    };
+    assert_eq!(time_s, 0.0);
+    assert!((excess_K - 8.0).abs() < 1e-9, "{started:?}");
+    assert!(!started.is_known());
+    session
+        .send(SessionCommand::ResetToolCalibration)
+        .expect("the session takes commands");
+    let measured = origin_until(&mut session, &|o| {
+        matches!(o, ElongationOrigin::ToolMeasured { .. })
+    });
+    assert!(measured.time_s() > 0.0, "{measured:?}");
+    assert!(measured.is_known());
+}

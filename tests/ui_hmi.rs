@@ -9,6 +9,7 @@ use egui_kittest::kittest::Queryable;
 use servosight::compensation::{
     AuditLog, CompensationId, CompensationLimits, Credentials, Outcome, Role as UserRole,
 };
+use servosight::estimators::pipeline::ElongationOrigin;
 use servosight::link::{ConnectionState, ReplaySpeed};
 use servosight::signal::AxisId;
 use servosight::sim::{ScenarioKind, TwinConfig};
@@ -698,7 +699,10 @@ fn the_warmup_checklist_is_driven_to_sign_off_and_saved() {
 
     click(h, "Tool measured");
     step_until(h, "the tool calibration reset", |app| {
-        app.state.warmup.tool_reset_at_s.is_some()
+        matches!(
+            app.state.elongation_origins.get(&AxisId::S),
+            Some(Some(ElongationOrigin::ToolMeasured { .. }))
+        )
     });
 
     // Signing off needs a name.

@@ -8,6 +8,7 @@ use servosight::compensation::{
     AuditEntry, CompensationId, CompensationLimits, CompensationValues, Outcome, Proposal, Request,
     Role,
 };
+use servosight::estimators::pipeline::ElongationOrigin;
 use servosight::fit::{Design, FitReport, ols, parse_terms, sensitivity};
 use servosight::link::ConnectionState;
 use servosight::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH, TIME};
@@ -808,7 +809,10 @@ fn warmup_state(which: &str) -> HmiState {
     if which != "warn" {
         s.warmup.baselines.insert(AxisId::X, fingerprint(0.43));
     }
-    s.warmup.tool_reset_at_s = Some(702.5);
+    s.elongation_origins.insert(
+        AxisId::S,
+        Some(ElongationOrigin::ToolMeasured { time_s: 702.5 }),
+    );
     s
 }
 
@@ -869,6 +873,86 @@ fn compensation_proposals_come_from_the_estimates() {
     let mut no_table = s.clone();
     no_table.compensation.controller = None;
     assert!(vm::compensation::build(&no_table).proposals.is_empty());
+}
+
+/// The thermal offset corrects the tool length measured when the elongation started counting:
+/// an estimate that started on a warm spindle does not know the growth before it, so its
+/// offset is shown but cannot be used, and the warm-up step says what to do.
+#[test]
+fn a_thermal_offset_is_proposed_only_from_a_known_tool_length() {
+    use servosight::ui::vm::warmup::StepStatus;
+    let origins = [
+        (Some(ElongationOrigin::ToolMeasured { time_s: 702.5 }), None),
+        (
+            Some(ElongationOrigin::FirstFrameAtRest { time_s: 0.0 }),
+            None,
+        ),
+        (
+            Some(ElongationOrigin::FirstFrameWarm {
+                time_s: 10_800.0,
+                excess_K: 6.4,
+            }),
+            Some("6.4 K above the room"),
+        ),
+        (
+            Some(ElongationOrigin::FirstFrameUnread { time_s: 3.0 }),
+            Some("no room or spindle stator reading"),
+        ),
+        (None, Some("not yet counted a frame")),
+    ];
+    for (origin, withheld) in origins {
+        // The offset applied is the estimate: compensated if the origin is known.
+        let mut s = warmup_state("pass");
+        s.elongation_origins.insert(AxisId::S, origin);
+        let view = vm::compensation::build(&s);
+        let offset = &view.proposals[0];
+        assert_eq!(offset.id, "thermal_offset.S");
+        let step = &vm::warmup::build(&s).steps[4];
+        match withheld {
+            None => {
+                assert_eq!(offset.blocked, None, "{origin:?}");
+                assert!(offset.basis.contains("counted from"), "{}", offset.basis);
+                assert_eq!(step.status, StepStatus::Pass, "{origin:?}: {step:?}");
+            }
+            Some(why) => {
+                let blocked = offset.blocked.as_deref().unwrap_or_default();
+                assert!(blocked.contains(why), "{origin:?}: {blocked}");
+                assert!(
+                    offset
+                        .basis
+                        .contains("not counted from a known tool length"),
+                    "{}",
+                    offset.basis
+                );
+                assert_eq!(step.status, StepStatus::Warn, "{origin:?}: {step:?}");
+                assert!(step.reason.contains(why), "{}", step.reason);
+            }
+        }
+        let counted_from = step
+            .values
+            .iter()
+            .find(|v| v.label == "counted from machine time")
+            .map(|v| v.value.clone());
+        assert_eq!(
+            counted_from,
+            Some(servosight::ui::vm::number(origin.map(|o| o.time_s()), 1))
+        );
+    }
+    // The same estimate on a session that started warm: listed with its reason, never usable.
+    let mut warm = warmup_state("warn");
+    warm.elongation_origins.insert(
+        AxisId::S,
+        Some(ElongationOrigin::FirstFrameWarm {
+            time_s: 10_800.0,
+            excess_K: 6.4,
+        }),
+    );
+    let proposals = vm::compensation::estimate_proposals(&warm);
+    assert!(proposals[0].withheld.is_some(), "{proposals:?}");
+    assert_eq!(
+        proposals[1].withheld, None,
+        "the backlash test is not affected"
+    );
 }
 
 /// The first two hours of the twin's production day (spindle warm-up, then roughing and

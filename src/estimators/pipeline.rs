@@ -2,6 +2,8 @@
 //! updated frame by frame without allocating.
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
+use serde::Serialize;
+
 use crate::profile::{AxisKind, MachineProfile};
 use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
@@ -122,6 +124,72 @@ pub struct SpindleEstimate {
     pub abnormality: AbnormalityScore,
 }
 
+/// Where a spindle's elongation counts from: the estimate is the growth since then, and a
+/// tool-length correction built on it is right only if the tool was measured then, or on a
+/// spindle as cold as it was then.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ElongationOrigin {
+    /// The first frame, with the stator within [`WARM_START_FLOOR_K`] of the room: a spindle
+    /// at rest, as it is when a tool is measured at the start of a shift.
+    FirstFrameAtRest {
+        /// Machine time of the frame, s.
+        time_s: f64,
+    },
+    /// The first frame, with the stator warm: the spindle had grown by an amount the estimate
+    /// does not know, so the growth since the tool measurement is unknown until it is taken
+    /// again.
+    FirstFrameWarm {
+        /// Machine time of the frame, s.
+        time_s: f64,
+        /// The stator's excess over the room, K.
+        excess_K: f64,
+    },
+    /// The first frame, without a room or stator reading that says whether the spindle was at
+    /// rest.
+    FirstFrameUnread {
+        /// Machine time of the frame, s.
+        time_s: f64,
+    },
+    /// The first frame after the operator said the tool was measured.
+    ToolMeasured {
+        /// Machine time of the frame, s.
+        time_s: f64,
+    },
+}
+
+impl ElongationOrigin {
+    /// What a first frame with this stator and room reading says about the spindle.
+    pub fn at_first_frame(time_s: f64, stator_C: f64, room_C: f64) -> Self {
+        if !(stator_C.is_finite() && room_C.is_finite()) {
+            ElongationOrigin::FirstFrameUnread { time_s }
+        } else if let Some(excess_K) = warm_excess(stator_C, room_C) {
+            ElongationOrigin::FirstFrameWarm { time_s, excess_K }
+        } else {
+            ElongationOrigin::FirstFrameAtRest { time_s }
+        }
+    }
+
+    /// Machine time the elongation counts from, s.
+    pub fn time_s(&self) -> f64 {
+        match *self {
+            ElongationOrigin::FirstFrameAtRest { time_s }
+            | ElongationOrigin::FirstFrameWarm { time_s, .. }
+            | ElongationOrigin::FirstFrameUnread { time_s }
+            | ElongationOrigin::ToolMeasured { time_s } => time_s,
+        }
+    }
+
+    /// Whether the estimate is the growth since a known tool length: the tool was measured
+    /// then, or the spindle was at rest, as it is when a shift's tool is measured.
+    pub fn is_known(&self) -> bool {
+        matches!(
+            self,
+            ElongationOrigin::FirstFrameAtRest { .. } | ElongationOrigin::ToolMeasured { .. }
+        )
+    }
+}
+
 /// Where an axis's servo signals are in the frame.
 #[derive(Debug, Clone, Copy)]
 struct AxisChannels {
@@ -193,6 +261,8 @@ struct SpindlePipeline {
     elongation: Option<SpindleElongationEstimator>,
     abnormality: Option<MotorAbnormalityEstimator>,
     estimate: SpindleEstimate,
+    /// Where the elongation counts from; `None` until the frame after a start or a reset.
+    elongation_origin: Option<ElongationOrigin>,
 }
 
 /// Every estimator of a machine.
@@ -397,6 +467,7 @@ impl EstimatorPipeline {
                                 elongation_um: f64::NAN,
                                 abnormality: AbnormalityScore::default(),
                             },
+                            elongation_origin: None,
                         });
                     }
                 }
@@ -566,6 +637,13 @@ impl EstimatorPipeline {
                     room,
                 };
                 spindle.estimate.elongation_um = elongation.update(&inputs, dt);
+                if spindle.elongation_origin.is_none() {
+                    spindle.elongation_origin = Some(if first {
+                        ElongationOrigin::at_first_frame(t, frame[c.stator], ambient)
+                    } else {
+                        ElongationOrigin::ToolMeasured { time_s: t }
+                    });
+                }
             }
             if let Some(abnormality) = &mut spindle.abnormality {
                 spindle.estimate.abnormality = abnormality.update(&sample(&c, f64::NAN));
@@ -677,8 +755,20 @@ impl EstimatorPipeline {
         for spindle in &mut self.spindles {
             if let Some(elongation) = &mut spindle.elongation {
                 elongation.reset_tool_calibration();
+                spindle.elongation_origin = None;
             }
         }
+    }
+
+    /// Where each spindle's elongation counts from, `None` for one that has not counted a
+    /// frame since the start or the last tool measurement. Only spindles with an elongation
+    /// model are listed.
+    pub fn elongation_origins(&self) -> Vec<(AxisId, Option<ElongationOrigin>)> {
+        self.spindles
+            .iter()
+            .filter(|s| s.elongation.is_some())
+            .map(|s| (s.axis, s.elongation_origin))
+            .collect()
     }
 
     /// The estimates this pipeline produces, as (estimate id, output column, reference column).
@@ -942,6 +1032,70 @@ mod tests {
             "{} against {expected}",
             front(&pipeline)
         );
+    }
+
+    /// The elongation counts from the first frame, which says whether the spindle was at rest
+    /// then (within the warm-start floor of the room), warm, or unread; after a tool
+    /// measurement it counts from the next frame.
+    #[test]
+    fn the_elongation_says_where_it_counts_from() {
+        let profile = MachineProfile::twin_calibrated().unwrap();
+        let recording = short_recording();
+        let schema = recording.schema();
+        let stator = schema
+            .index_of(&axis_column(AxisId::S, Quantity::StatorTemp))
+            .unwrap();
+        let room = schema.index_of(AMBIENT).unwrap();
+        let mut frame = Vec::new();
+        recording.row_into(0, &mut frame);
+        let first = |time_s: f64, stator_C: f64, room_C: f64| {
+            let mut pipeline = EstimatorPipeline::new(&profile, schema).unwrap();
+            assert_eq!(pipeline.elongation_origins(), vec![(AxisId::S, None)]);
+            let mut frame = frame.clone();
+            frame[0] = time_s;
+            frame[stator] = stator_C;
+            frame[room] = room_C;
+            pipeline.update(&frame);
+            let origins = pipeline.elongation_origins();
+            assert_eq!(origins.len(), 1);
+            (pipeline, origins[0].1.unwrap())
+        };
+        let floor = WARM_START_FLOOR_K;
+        assert_eq!(
+            first(5.0, 22.0 + floor, 22.0).1,
+            ElongationOrigin::FirstFrameAtRest { time_s: 5.0 }
+        );
+        assert_eq!(
+            first(5.0, 18.0, 22.0).1,
+            ElongationOrigin::FirstFrameAtRest { time_s: 5.0 }
+        );
+        assert_eq!(
+            first(5.0, 30.0, 22.0).1,
+            ElongationOrigin::FirstFrameWarm {
+                time_s: 5.0,
+                excess_K: 8.0
+            }
+        );
+        for (stator_C, room_C) in [(f64::NAN, 22.0), (30.0, f64::NAN), (f64::INFINITY, 22.0)] {
+            assert_eq!(
+                first(5.0, stator_C, room_C).1,
+                ElongationOrigin::FirstFrameUnread { time_s: 5.0 },
+                "{stator_C} {room_C}"
+            );
+        }
+        let (mut pipeline, origin) = first(5.0, 30.0, 22.0);
+        assert!(!origin.is_known());
+        pipeline.reset_tool_calibration();
+        assert_eq!(pipeline.elongation_origins(), vec![(AxisId::S, None)]);
+        frame[0] = 6.0;
+        pipeline.update(&frame);
+        let measured = pipeline.elongation_origins()[0].1.unwrap();
+        assert_eq!(measured, ElongationOrigin::ToolMeasured { time_s: 6.0 });
+        assert!(measured.is_known());
+        // Later frames keep the origin.
+        frame[0] = 7.0;
+        pipeline.update(&frame);
+        assert_eq!(pipeline.elongation_origins()[0].1, Some(measured));
     }
 
     /// Frames without the coolant column are refused by a profile whose bearing model reads

@@ -773,6 +773,10 @@ impl HmiApp {
             comp.notice = Some(format!("no proposal for {id} any more"));
             return;
         };
+        if let Some(why) = &proposal.withheld {
+            comp.notice = Some(format!("{id} is not proposed: {why}"));
+            return;
+        }
         let limit = comp.limits.of(proposal.id.kind()).absolute_um;
         if proposal.value_um.abs() > limit {
             comp.notice = Some(format!(

@@ -24,6 +24,7 @@ use crate::compensation::{
 };
 use crate::estimators::EstimatorPipeline;
 use crate::estimators::fingerprint::FrictionFingerprint;
+use crate::estimators::pipeline::ElongationOrigin;
 use crate::link::{
     ConnectionState, ControllerLink, LinkError, ModbusConfig, Recorder, RecorderConfig,
     ReplayOptions, ReplaySpeed,
@@ -170,11 +171,9 @@ pub enum SessionUpdate {
     Event(Event),
     /// The friction-fingerprint baselines per feed axis (`None`: none saved yet).
     Baselines(Vec<(AxisId, Result<Option<FrictionFingerprint>, String>)>),
-    /// Spindle elongation counts from zero from this machine time on.
-    ToolCalibrationReset {
-        /// Machine time of the newest frame when the reset took effect.
-        machine_time_s: Option<f64>,
-    },
+    /// Where each spindle's elongation counts from (re-sent every tick, like the link's state;
+    /// `None` for a tool measurement not yet counted).
+    ElongationOrigins(Vec<(AxisId, Option<ElongationOrigin>)>),
     /// The warm-up report was written (or why not).
     WarmupReportSaved(Result<SavedReport, String>),
 }
@@ -535,6 +534,11 @@ impl Worker {
             }
         }
         self.send(SessionUpdate::Link(LinkSnapshot::from_status(&status)));
+        if let Some(pipeline) = &self.pipeline {
+            self.send(SessionUpdate::ElongationOrigins(
+                pipeline.elongation_origins(),
+            ));
+        }
         if let Some(recorder) = self.recorder.as_mut() {
             if let Err(error) = recorder.flush_if_due() {
                 self.stop_recording(Some(error.to_string()));
@@ -707,9 +711,8 @@ impl Worker {
             SessionCommand::ResetToolCalibration => {
                 if let Some(pipeline) = self.pipeline.as_mut() {
                     pipeline.reset_tool_calibration();
-                    self.send(SessionUpdate::ToolCalibrationReset {
-                        machine_time_s: self.last_time_s,
-                    });
+                    let origins = pipeline.elongation_origins();
+                    self.send(SessionUpdate::ElongationOrigins(origins));
                     self.event(
                         EventKind::Condition,
                         Severity::Normal,

@@ -478,9 +478,6 @@ pub struct WarmupState {
         std::collections::BTreeMap<AxisId, crate::estimators::fingerprint::FrictionFingerprint>,
     /// A problem reading or saving a baseline.
     pub baseline_note: Option<String>,
-    /// Machine time at which the spindle elongation was last counted from zero (the operator
-    /// measured the tool).
-    pub tool_reset_at_s: Option<f64>,
     /// The report, once signed off and saved.
     pub signed: Option<SavedReport>,
     /// Sign-off sent to the session, waiting for the file to be written.
@@ -516,6 +513,10 @@ pub struct HmiState {
     pub history: super::history::History,
     /// Limits of the live readings.
     pub thresholds: StatusThresholds,
+    /// Where each spindle's elongation estimate counts from (`None`: a tool measurement not yet
+    /// counted), as the session's estimators last said.
+    pub elongation_origins:
+        std::collections::BTreeMap<AxisId, Option<crate::estimators::pipeline::ElongationOrigin>>,
     /// Limits of the estimated temperatures and elongation per axis, from the machine
     /// profile (empty without one).
     pub estimate_limits: std::collections::BTreeMap<AxisId, crate::profile::AxisLimits>,
@@ -559,6 +560,7 @@ impl HmiState {
             },
             history: super::history::History::new(channels, config),
             thresholds: StatusThresholds::default(),
+            elongation_origins: Default::default(),
             estimate_limits: Default::default(),
             compensation,
             events: EventLog::default(),
@@ -643,8 +645,8 @@ impl HmiState {
                 }
                 self.warmup.baseline_note = (!notes.is_empty()).then(|| notes.join("; "));
             }
-            SessionUpdate::ToolCalibrationReset { machine_time_s } => {
-                self.warmup.tool_reset_at_s = machine_time_s;
+            SessionUpdate::ElongationOrigins(origins) => {
+                self.elongation_origins = origins.into_iter().collect();
             }
             SessionUpdate::WarmupReportSaved(result) => {
                 self.warmup.saving = false;

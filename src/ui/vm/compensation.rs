@@ -5,7 +5,9 @@ use serde::Serialize;
 
 use super::number;
 use crate::compensation::{CompensationId, Outcome, Role};
+use crate::estimators::pipeline::ElongationOrigin;
 use crate::link::ConnectionState;
+use crate::signal::AxisId;
 use crate::ui::state::{HmiState, PushFlow, PushResult};
 
 /// One row of the controller table.
@@ -98,12 +100,47 @@ pub struct EstimateProposal {
     pub value_um: f64,
     /// What it is computed from, in words (goes into the request's evidence).
     pub basis: String,
+    /// Why it must not be used although it can be computed (the estimate does not count from
+    /// a known tool length).
+    pub withheld: Option<String>,
+}
+
+/// Where a spindle's elongation estimate counts from, in words: `Ok` when the estimate is the
+/// growth since a known tool length, `Err` with what to do when it is not. The thermal offset
+/// corrects the tool length measured at that moment, so a spindle that was already warm when
+/// the estimates started has grown by an amount nobody estimated, and a correction built on the
+/// estimate would leave that growth uncorrected.
+pub fn elongation_counted_from(state: &HmiState, axis: AxisId) -> Result<String, String> {
+    let measure = "measure the tool and press Tool measured on the Warm-up panel";
+    match state.elongation_origins.get(&axis).copied().flatten() {
+        Some(ElongationOrigin::ToolMeasured { time_s }) => Ok(format!(
+            "counted from the tool measurement at machine time {time_s:.1} s"
+        )),
+        Some(ElongationOrigin::FirstFrameAtRest { time_s }) => Ok(format!(
+            "counted from the estimates' start at machine time {time_s:.1} s, the spindle at \
+             rest then (no tool measured in this session)"
+        )),
+        Some(ElongationOrigin::FirstFrameWarm { time_s, excess_K }) => Err(format!(
+            "the spindle was {excess_K:.1} K above the room when the estimates started at \
+             machine time {time_s:.1} s, so its growth before then is unknown: {measure}"
+        )),
+        Some(ElongationOrigin::FirstFrameUnread { time_s }) => Err(format!(
+            "no room or spindle stator reading at the estimates' start (machine time \
+             {time_s:.1} s) says whether the spindle was at rest: {measure}"
+        )),
+        None => Err(
+            "the estimators have not yet counted a frame since they started or the tool was \
+             measured"
+                .into(),
+        ),
+    }
 }
 
 /// Compensation values the estimates call for: the spindle's thermal offset from its
 /// estimated elongation, a feed axis's backlash from the warm-up backlash test. Only values
 /// the controller's table has are proposed. (Straightness tables are not proposed: the
-/// controller's node positions along the stroke are not known to the HMI.)
+/// controller's node positions along the stroke are not known to the HMI.) A thermal offset
+/// whose elongation does not count from a known tool length is listed, withheld, with why.
 pub fn estimate_proposals(state: &HmiState) -> Vec<EstimateProposal> {
     let Some(table) = &state.compensation.controller else {
         return Vec::new();
@@ -116,14 +153,18 @@ pub fn estimate_proposals(state: &HmiState) -> Vec<EstimateProposal> {
         if let Some(e) = state.latest.get(&column).filter(|v| v.is_finite())
             && table.get(id).is_some()
         {
+            let counted_from = elongation_counted_from(state, axis);
             out.push(EstimateProposal {
                 id,
                 value_um: round(e),
                 basis: format!(
-                    "estimated {axis} thermal elongation {e:.1} µm at machine time {} s (counted from the tool measurement at {} s)",
+                    "estimated {axis} thermal elongation {e:.1} µm at machine time {} s ({})",
                     number(state.latest.time_s(), 1),
-                    number(state.warmup.tool_reset_at_s, 1)
+                    counted_from
+                        .as_deref()
+                        .unwrap_or("not counted from a known tool length")
                 ),
+                withheld: counted_from.err(),
             });
         }
     }
@@ -149,6 +190,7 @@ pub fn estimate_proposals(state: &HmiState) -> Vec<EstimateProposal> {
                     "warm-up backlash test: {:.1} µm (per-feed 95 % intervals {low:.1}–{high:.1} µm, confidence {:.2})",
                     report.backlash_um, report.confidence
                 ),
+                withheld: None,
             });
         }
     }
@@ -168,7 +210,7 @@ pub struct ProposalRow {
     pub change_um: String,
     /// What it is computed from.
     pub basis: String,
-    /// Why it cannot be used (beyond the absolute limit).
+    /// Why it cannot be used (withheld, or beyond the absolute limit).
     pub blocked: Option<String>,
     /// Already in the draft at this value.
     pub in_draft: bool,
@@ -360,8 +402,10 @@ pub fn build(state: &HmiState) -> CompensationView {
                 proposed_um: format!("{:.1}", p.value_um),
                 change_um: number(current.map(|v| p.value_um - v), 1),
                 basis: p.basis,
-                blocked: (p.value_um.abs() > limit).then(|| {
-                    format!("beyond the absolute limit ±{limit:.1} µm: check the machine first")
+                blocked: p.withheld.or_else(|| {
+                    (p.value_um.abs() > limit).then(|| {
+                        format!("beyond the absolute limit ±{limit:.1} µm: check the machine first")
+                    })
                 }),
                 in_draft: c.draft_changes.get(p.id) == Some(p.value_um),
             }

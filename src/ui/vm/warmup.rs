@@ -650,12 +650,21 @@ fn elongation(state: &HmiState, settings: &WarmupSettings) -> StepView {
         value("controller thermal offset", number(offset, 1), "µm"),
         value("uncompensated", format!("{residual:.1}"), "µm"),
         value(
-            "tool measured at machine time",
-            number(state.warmup.tool_reset_at_s, 1),
+            "counted from machine time",
+            number(
+                state
+                    .elongation_origins
+                    .get(&axis)
+                    .copied()
+                    .flatten()
+                    .map(|o| o.time_s()),
+                1,
+            ),
             "s",
         ),
     ];
     let tolerance = settings.elongation_tolerance_um;
+    let counted_from = super::compensation::elongation_counted_from(state, axis);
     (step.status, step.reason) = if limit.is_some_and(|l| residual.abs() >= l.fault) {
         (
             StepStatus::Fail,
@@ -663,6 +672,11 @@ fn elongation(state: &HmiState, settings: &WarmupSettings) -> StepView {
                 "{residual:.1} µm of elongation uncompensated, at or above the fault limit {} µm",
                 limit.map_or(f64::NAN, |l| l.fault)
             ),
+        )
+    } else if let Err(why) = counted_from {
+        (
+            StepStatus::Warn,
+            format!("the estimate is not the growth since the tool measurement: {why}"),
         )
     } else if residual.abs() > tolerance {
         (
