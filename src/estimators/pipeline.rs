@@ -2,8 +2,6 @@
 //! updated frame by frame without allocating.
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
-use serde::Serialize;
-
 use crate::profile::{AxisKind, MachineProfile};
 use crate::signal::channel::{AMBIENT, COOLANT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Schema, axis_column, reference_column};
@@ -127,8 +125,7 @@ pub struct SpindleEstimate {
 /// Where a spindle's elongation counts from: the estimate is the growth since then, and a
 /// tool-length correction built on it is right only if the tool was measured then, or on a
 /// spindle as cold as it was then.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ElongationOrigin {
     /// The first frame, with the stator within [`WARM_START_FLOOR_K`] of the room: a spindle
     /// at rest, as it is when a tool is measured at the start of a shift.
