@@ -370,26 +370,20 @@ fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
     }
 }
 
-/// An HMI session that connects to a machine already warm (here a replay whose first frame
-/// has the X stator 2 K above the room) says, once the first frame has arrived, that the
-/// bearing and nut heat started from the profile's warm start: the estimates of the first
-/// hour are a seed's, not the parts' own heat.
-#[test]
-fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
+/// A replay of the controller's sample columns, one row a second for `seconds`, with the room
+/// at 22 °C, `warm_column` at `warm_celsius` and every other value 1.
+fn write_warm_replay(path: &Path, seconds: u32, warm_column: &str, warm_celsius: f64) {
     use servosight::link::register_map;
     use servosight::signal::channel::AMBIENT;
-    use servosight::ui::SourceSpec;
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("warm.csv");
     let names = register_map::sample_columns();
-    let rows: Vec<String> = (0..5)
+    let rows: Vec<String> = (0..seconds)
         .map(|t| {
             let row: Vec<String> = names
                 .iter()
                 .enumerate()
                 .map(|(i, name)| match name.as_str() {
                     _ if i == 0 => t.to_string(),
-                    "X.stator_temp_C" => "24".to_string(),
+                    name if name == warm_column => warm_celsius.to_string(),
                     name if name == AMBIENT => "22".to_string(),
                     _ => "1".to_string(),
                 })
@@ -397,7 +391,19 @@ fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
             row.join(",")
         })
         .collect();
-    std::fs::write(&path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
+    std::fs::write(path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
+}
+
+/// An HMI session that connects to a machine already warm (here a replay whose first frame
+/// has the X stator 2 K above the room) says, once the first frame has arrived, that the
+/// bearing and nut heat started from the profile's warm start: the estimates of the first
+/// hour are a seed's, not the parts' own heat.
+#[test]
+fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
+    use servosight::ui::SourceSpec;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("warm.csv");
+    write_warm_replay(&path, 5, "X.stator_temp_C", 24.0);
     let mut session = twin_profile_session(
         dir.path(),
         SourceSpec::Replay {
@@ -420,29 +426,11 @@ fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
 #[test]
 fn the_hmi_session_says_where_the_spindle_elongation_counts_from() {
     use servosight::estimators::pipeline::ElongationOrigin;
-    use servosight::link::register_map;
-    use servosight::signal::channel::AMBIENT;
     use servosight::ui::SourceSpec;
     use servosight::ui::session::{SessionCommand, SessionUpdate};
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("warm-spindle.csv");
-    let names = register_map::sample_columns();
-    let rows: Vec<String> = (0..60)
-        .map(|t| {
-            let row: Vec<String> = names
-                .iter()
-                .enumerate()
-                .map(|(i, name)| match name.as_str() {
-                    _ if i == 0 => t.to_string(),
-                    "S.stator_temp_C" => "30".to_string(),
-                    name if name == AMBIENT => "22".to_string(),
-                    _ => "1".to_string(),
-                })
-                .collect();
-            row.join(",")
-        })
-        .collect();
-    std::fs::write(&path, format!("{}\n{}\n", names.join(","), rows.join("\n"))).unwrap();
+    write_warm_replay(&path, 60, "S.stator_temp_C", 30.0);
     // Ten frames a second: the replay runs for six seconds, long enough to measure the tool.
     let mut session = twin_profile_session(
         dir.path(),
