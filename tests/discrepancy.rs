@@ -2286,11 +2286,14 @@ fn a_second_effect_is_judged_with_the_first_refitted_beside_it() {
     );
 }
 
-/// Coolant and the room concealed on the front bearing over a day (seed 203): both are named,
-/// and nothing else. A third step, refused beside them as they stand, is not asked again
-/// after the refit when its winner is built on the bearing's own state: a changed convection,
-/// rebuilt on the corrected state, explained 0.80 of what was left from that freedom alone and
-/// was named beside them although the simulation had it right.
+/// Coolant and the room concealed on the front bearing over a day (seed 203): both are named.
+/// A third step, refused beside them as they stand, is not asked again after the refit when
+/// its winner is built on the bearing's own state: a changed convection, rebuilt on the
+/// corrected state, explained 0.80 of what was left from that freedom alone and was named
+/// beside them although the simulation had it right. (Since the room's faster lags compete in
+/// the selection, 2026-11-29, a changed convection is named third here at its own step, for
+/// 1.6 % of the held-out error left: docs/discrepancy.md, *The room's faster lags in the
+/// selection*.)
 #[test]
 fn a_heat_path_built_on_the_targets_state_is_not_accepted_on_its_refit_alone() {
     let (_, outcome, checks) = verify_pair_over_a_day(
@@ -2298,9 +2301,17 @@ fn a_heat_path_built_on_the_targets_state_is_not_accepted_on_its_refit_alone() {
         Noise::White,
         &[Effect::Coolant, Effect::AmbientTemperature],
     );
-    let mut named = outcome.named.clone();
-    named.sort();
-    assert_eq!(named, ["ambient_temperature", "coolant"], "{checks:?}");
+    let concealed = ["ambient_temperature", "coolant"];
+    for physics in concealed {
+        assert!(outcome.named.iter().any(|n| n == physics), "{checks:?}");
+    }
+    for finding in &outcome.report.findings {
+        assert!(
+            concealed.contains(&finding.physics.as_str()) || !finding.judged_after_refit,
+            "{} named on its refit alone: {checks:?}",
+            finding.physics
+        );
+    }
 }
 
 /// An observer hears the analysis advance phase by phase (the fraction never falls) and
