@@ -2312,6 +2312,7 @@ fn a_heat_path_built_on_the_targets_state_is_not_accepted_on_its_refit_alone() {
             finding.physics
         );
     }
+    assert!(outcome.named.len() <= 3, "{checks:?}");
 }
 
 /// An observer hears the analysis advance phase by phase (the fraction never falls) and

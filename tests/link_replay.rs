@@ -430,8 +430,9 @@ fn the_hmi_session_says_where_the_spindle_elongation_counts_from() {
     use servosight::ui::session::{SessionCommand, SessionUpdate};
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("warm-spindle.csv");
-    write_warm_replay(&path, 60, "S.stator_temp_C", 30.0);
-    // Ten frames a second: the replay runs for six seconds, long enough to measure the tool.
+    write_warm_replay(&path, 600, "S.stator_temp_C", 30.0);
+    // Ten frames a second: the replay runs for a minute, long enough to measure the tool on a
+    // loaded machine.
     let mut session = twin_profile_session(
         dir.path(),
         SourceSpec::Replay {

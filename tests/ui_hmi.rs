@@ -756,6 +756,11 @@ fn an_estimate_proposal_goes_through_approval_and_is_written() {
     step_until_within(h, "a spindle elongation worth compensating", 60, |app| {
         app.state.compensation.controller.is_some()
             && !app.state.compensation.users.is_empty()
+            // The twin starts at rest: its elongation counts from a known tool length.
+            && app
+                .state
+                .elongation_origin(AxisId::S)
+                .is_some_and(|o| o.is_known())
             && app
                 .state
                 .latest

@@ -811,7 +811,10 @@ fn warmup_state(which: &str) -> HmiState {
     }
     s.elongation_origins.insert(
         AxisId::S,
-        Some(ElongationOrigin::ToolMeasured { time_s: 702.5 }),
+        Some(ElongationOrigin::ToolMeasured {
+            time_s: 702.5,
+            started_warm_K: None,
+        }),
     );
     s
 }
@@ -882,14 +885,20 @@ fn compensation_proposals_come_from_the_estimates() {
 fn a_thermal_offset_is_proposed_only_from_a_known_tool_length() {
     use servosight::ui::vm::warmup::StepStatus;
     let origins = [
-        (Some(ElongationOrigin::ToolMeasured { time_s: 702.5 }), None),
+        (
+            Some(ElongationOrigin::ToolMeasured {
+                time_s: 702.5,
+                started_warm_K: None,
+            }),
+            None,
+        ),
         (
             Some(ElongationOrigin::FirstFrameAtRest { time_s: 0.0 }),
             None,
         ),
         (
             Some(ElongationOrigin::FirstFrameWarm {
-                time_s: 10_800.0,
+                time_s: 700.0,
                 excess_K: 6.4,
             }),
             Some("6.4 K above the room"),
@@ -943,7 +952,7 @@ fn a_thermal_offset_is_proposed_only_from_a_known_tool_length() {
     warm.elongation_origins.insert(
         AxisId::S,
         Some(ElongationOrigin::FirstFrameWarm {
-            time_s: 10_800.0,
+            time_s: 700.0,
             excess_K: 6.4,
         }),
     );
@@ -953,6 +962,97 @@ fn a_thermal_offset_is_proposed_only_from_a_known_tool_length() {
         proposals[1].withheld, None,
         "the backlash test is not affected"
     );
+
+    // Measured on a spindle that started warm: usable, with the caution about the first hours.
+    let mut measured = warmup_state("pass");
+    measured.elongation_origins.insert(
+        AxisId::S,
+        Some(ElongationOrigin::ToolMeasured {
+            time_s: 702.5,
+            started_warm_K: Some(6.4),
+        }),
+    );
+    let offset = &vm::compensation::build(&measured).proposals[0];
+    assert_eq!(offset.blocked, None);
+    assert!(
+        offset.basis.contains("6.4 K above the room"),
+        "{}",
+        offset.basis
+    );
+    // An origin newer than the newest frame belongs to estimates not shown yet.
+    let mut ahead = warmup_state("pass");
+    ahead.elongation_origins.insert(
+        AxisId::S,
+        Some(ElongationOrigin::ToolMeasured {
+            time_s: 2000.0,
+            started_warm_K: None,
+        }),
+    );
+    let offset = &vm::compensation::build(&ahead).proposals[0];
+    assert!(
+        offset
+            .blocked
+            .as_deref()
+            .is_some_and(|b| b.contains("from before the count")),
+        "{offset:?}"
+    );
+}
+
+/// A thermal offset in the draft was computed from the elongation as it counted then: when the
+/// count starts again (the tool was measured) it is taken out of the draft, saying so, and the
+/// offset is withheld until the new count has reached the screen.
+#[test]
+fn a_tool_measurement_takes_the_old_thermal_offset_out_of_the_draft() {
+    use servosight::ui::session::SessionUpdate;
+    let id = CompensationId::ThermalOffset(AxisId::S);
+    let mut s = warmup_state("pass");
+    s.compensation.draft_changes.set(id, 18.5);
+    s.compensation
+        .draft_changes
+        .set(CompensationId::Backlash(AxisId::X), 11.6);
+    // The same origin again (every tick) changes nothing.
+    s.apply(SessionUpdate::ElongationOrigins(vec![(
+        AxisId::S,
+        Some(ElongationOrigin::ToolMeasured {
+            time_s: 702.5,
+            started_warm_K: None,
+        }),
+    )]));
+    assert_eq!(s.compensation.draft_changes.get(id), Some(18.5));
+    // The operator's press: the draft loses the offset at once, before the session answers.
+    let mut pressed = s.clone();
+    pressed.elongation_restarted(AxisId::S);
+    assert_eq!(pressed.compensation.draft_changes.get(id), None);
+    assert_eq!(
+        pressed
+            .compensation
+            .draft_changes
+            .get(CompensationId::Backlash(AxisId::X)),
+        Some(11.6)
+    );
+    assert!(
+        pressed
+            .compensation
+            .notice
+            .as_deref()
+            .is_some_and(|n| n.contains("thermal_offset.S taken out of the draft")),
+        "{:?}",
+        pressed.compensation.notice
+    );
+    assert!(
+        vm::compensation::build(&pressed).proposals[0]
+            .blocked
+            .is_some()
+    );
+    // The session says the count started again: the same.
+    s.apply(SessionUpdate::ElongationOrigins(vec![(
+        AxisId::S,
+        Some(ElongationOrigin::ToolMeasured {
+            time_s: 1000.0,
+            started_warm_K: None,
+        }),
+    )]));
+    assert_eq!(s.compensation.draft_changes.get(id), None);
 }
 
 /// The first two hours of the twin's production day (spindle warm-up, then roughing and

@@ -118,6 +118,11 @@ impl CompensationValues {
         self.values.insert(id, micrometres);
     }
 
+    /// Takes one value out, returning it if it was there.
+    pub fn remove(&mut self, id: CompensationId) -> Option<f64> {
+        self.values.remove(&id)
+    }
+
     /// One value, µm, if present.
     pub fn get(&self, id: CompensationId) -> Option<f64> {
         self.values.get(&id).copied()

@@ -127,8 +127,8 @@ pub struct SpindleEstimate {
 /// spindle as cold as it was then.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ElongationOrigin {
-    /// The first frame, with the stator within [`WARM_START_FLOOR_K`] of the room: a spindle
-    /// at rest, as it is when a tool is measured at the start of a shift.
+    /// The first frame, with the stator no more than [`WARM_START_FLOOR_K`] above the room: a
+    /// spindle at rest, as it is when a tool is measured at the start of a shift.
     FirstFrameAtRest {
         /// Machine time of the frame, s.
         time_s: f64,
@@ -152,6 +152,10 @@ pub enum ElongationOrigin {
     ToolMeasured {
         /// Machine time of the frame, s.
         time_s: f64,
+        /// The stator's excess over the room when the estimates started, K, if the spindle was
+        /// warm then: the elongation model's heat started at rest, so for the first hours it
+        /// may read growth a spindle already in balance does not show.
+        started_warm_K: Option<f64>,
     },
 }
 
@@ -173,7 +177,7 @@ impl ElongationOrigin {
             ElongationOrigin::FirstFrameAtRest { time_s }
             | ElongationOrigin::FirstFrameWarm { time_s, .. }
             | ElongationOrigin::FirstFrameUnread { time_s }
-            | ElongationOrigin::ToolMeasured { time_s } => time_s,
+            | ElongationOrigin::ToolMeasured { time_s, .. } => time_s,
         }
     }
 
@@ -258,8 +262,17 @@ struct SpindlePipeline {
     elongation: Option<SpindleElongationEstimator>,
     abnormality: Option<MotorAbnormalityEstimator>,
     estimate: SpindleEstimate,
-    /// Where the elongation counts from; `None` until the frame after a start or a reset.
+    /// Where the elongation counts from; `None` until its first finite estimate after a start
+    /// or a tool measurement.
     elongation_origin: Option<ElongationOrigin>,
+    /// The operator measured the tool and the elongation has not counted from it yet (also
+    /// before the first frame).
+    tool_measured_pending: bool,
+    /// Whether the elongation has had a finite estimate since the start.
+    counted: bool,
+    /// The stator's excess over the room at the elongation's first finite estimate, when the
+    /// spindle was warm then: its elongation model's heat started at rest.
+    started_warm_K: Option<f64>,
 }
 
 /// Every estimator of a machine.
@@ -465,6 +478,9 @@ impl EstimatorPipeline {
                                 abnormality: AbnormalityScore::default(),
                             },
                             elongation_origin: None,
+                            tool_measured_pending: false,
+                            counted: false,
+                            started_warm_K: None,
                         });
                     }
                 }
@@ -634,12 +650,23 @@ impl EstimatorPipeline {
                     room,
                 };
                 spindle.estimate.elongation_um = elongation.update(&inputs, dt);
-                if spindle.elongation_origin.is_none() {
-                    spindle.elongation_origin = Some(if first {
-                        ElongationOrigin::at_first_frame(t, frame[c.stator], ambient)
+                // The estimate counts from its first finite value, as the estimator's zero
+                // does.
+                if spindle.elongation_origin.is_none() && spindle.estimate.elongation_um.is_finite()
+                {
+                    if !spindle.counted {
+                        spindle.counted = true;
+                        spindle.started_warm_K = warm_excess(frame[c.stator], ambient);
+                    }
+                    spindle.elongation_origin = Some(if spindle.tool_measured_pending {
+                        ElongationOrigin::ToolMeasured {
+                            time_s: t,
+                            started_warm_K: spindle.started_warm_K,
+                        }
                     } else {
-                        ElongationOrigin::ToolMeasured { time_s: t }
+                        ElongationOrigin::at_first_frame(t, frame[c.stator], ambient)
                     });
+                    spindle.tool_measured_pending = false;
                 }
             }
             if let Some(abnormality) = &mut spindle.abnormality {
@@ -753,6 +780,7 @@ impl EstimatorPipeline {
             if let Some(elongation) = &mut spindle.elongation {
                 elongation.reset_tool_calibration();
                 spindle.elongation_origin = None;
+                spindle.tool_measured_pending = true;
             }
         }
     }
@@ -1055,44 +1083,76 @@ mod tests {
             pipeline.update(&frame);
             let origins = pipeline.elongation_origins();
             assert_eq!(origins.len(), 1);
-            (pipeline, origins[0].1.unwrap())
+            // It counts from the estimate's first value, as the estimator's zero does.
+            let estimate = pipeline.spindle(AxisId::S).unwrap().elongation_um;
+            assert_eq!(origins[0].1.is_some(), estimate.is_finite(), "{estimate}");
+            (pipeline, origins[0].1)
         };
         let floor = WARM_START_FLOOR_K;
         assert_eq!(
             first(5.0, 22.0 + floor, 22.0).1,
-            ElongationOrigin::FirstFrameAtRest { time_s: 5.0 }
+            Some(ElongationOrigin::FirstFrameAtRest { time_s: 5.0 })
         );
         assert_eq!(
             first(5.0, 18.0, 22.0).1,
-            ElongationOrigin::FirstFrameAtRest { time_s: 5.0 }
+            Some(ElongationOrigin::FirstFrameAtRest { time_s: 5.0 })
         );
         assert_eq!(
             first(5.0, 30.0, 22.0).1,
-            ElongationOrigin::FirstFrameWarm {
+            Some(ElongationOrigin::FirstFrameWarm {
                 time_s: 5.0,
                 excess_K: 8.0
-            }
+            })
         );
+        // Unread where the model gives a value without the reading; nothing where it does not.
         for (stator_C, room_C) in [(f64::NAN, 22.0), (30.0, f64::NAN), (f64::INFINITY, 22.0)] {
-            assert_eq!(
-                first(5.0, stator_C, room_C).1,
-                ElongationOrigin::FirstFrameUnread { time_s: 5.0 },
-                "{stator_C} {room_C}"
+            let origin = first(5.0, stator_C, room_C).1;
+            assert!(
+                origin.is_none_or(|o| o == ElongationOrigin::FirstFrameUnread { time_s: 5.0 }),
+                "{stator_C} {room_C}: {origin:?}"
             );
         }
+        assert_eq!(
+            ElongationOrigin::at_first_frame(5.0, f64::NAN, 22.0),
+            ElongationOrigin::FirstFrameUnread { time_s: 5.0 }
+        );
         let (mut pipeline, origin) = first(5.0, 30.0, 22.0);
+        let origin = origin.unwrap();
         assert!(!origin.is_known());
         pipeline.reset_tool_calibration();
         assert_eq!(pipeline.elongation_origins(), vec![(AxisId::S, None)]);
         frame[0] = 6.0;
         pipeline.update(&frame);
         let measured = pipeline.elongation_origins()[0].1.unwrap();
-        assert_eq!(measured, ElongationOrigin::ToolMeasured { time_s: 6.0 });
+        assert_eq!(
+            measured,
+            ElongationOrigin::ToolMeasured {
+                time_s: 6.0,
+                started_warm_K: Some(8.0)
+            }
+        );
         assert!(measured.is_known());
         // Later frames keep the origin.
         frame[0] = 7.0;
         pipeline.update(&frame);
         assert_eq!(pipeline.elongation_origins()[0].1, Some(measured));
+        // The tool measured before the first frame: the first frame counts from it.
+        let mut early = EstimatorPipeline::new(&profile, schema).unwrap();
+        early.reset_tool_calibration();
+        frame[0] = 3.0;
+        frame[stator] = 30.0;
+        frame[room] = 22.0;
+        early.update(&frame);
+        assert_eq!(
+            early.elongation_origins(),
+            vec![(
+                AxisId::S,
+                Some(ElongationOrigin::ToolMeasured {
+                    time_s: 3.0,
+                    started_warm_K: Some(8.0)
+                })
+            )]
+        );
     }
 
     /// Frames without the coolant column are refused by a profile whose bearing model reads

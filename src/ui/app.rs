@@ -965,7 +965,15 @@ impl HmiApp {
                     self.send(SessionCommand::SaveBaseline(Box::new(fingerprint)));
                 }
             }
-            UiCommand::ToolMeasured => self.send(SessionCommand::ResetToolCalibration),
+            UiCommand::ToolMeasured => {
+                // Until the estimators count from the measurement, nothing counted before it
+                // may be proposed.
+                let spindles: Vec<AxisId> = self.state.elongation_origins.keys().copied().collect();
+                for axis in spindles {
+                    self.state.elongation_restarted(axis);
+                }
+                self.send(SessionCommand::ResetToolCalibration);
+            }
             UiCommand::SignOffWarmup => self.sign_off_warmup(),
             UiCommand::ComputeDepth => {
                 self.state.depth.error = None;

@@ -541,6 +541,34 @@ pub struct HmiState {
 }
 
 impl HmiState {
+    /// Where `axis`'s elongation estimate counts from, if the estimators have said.
+    pub fn elongation_origin(
+        &self,
+        axis: AxisId,
+    ) -> Option<crate::estimators::pipeline::ElongationOrigin> {
+        self.elongation_origins.get(&axis).copied().flatten()
+    }
+
+    /// The operator measured the tool: until the estimators count `axis`'s elongation from it,
+    /// it counts from nothing known, and a thermal offset in the draft, computed from the old
+    /// count, is taken out.
+    pub fn elongation_restarted(&mut self, axis: AxisId) {
+        self.elongation_origins.insert(axis, None);
+        self.drop_thermal_offset_draft(axis);
+    }
+
+    /// Takes `axis`'s thermal offset out of the draft, saying so: it was computed from an
+    /// elongation that counts from somewhere else now.
+    fn drop_thermal_offset_draft(&mut self, axis: AxisId) {
+        let id = crate::compensation::CompensationId::ThermalOffset(axis);
+        if self.compensation.draft_changes.remove(id).is_some() {
+            self.compensation.notice = Some(format!(
+                "{id} taken out of the draft: the elongation it was computed from now counts from \
+                 a new tool measurement"
+            ));
+        }
+    }
+
     /// An empty state for a link with these columns (`time_s` first).
     pub fn new(
         names: Vec<String>,
@@ -646,7 +674,12 @@ impl HmiState {
                 self.warmup.baseline_note = (!notes.is_empty()).then(|| notes.join("; "));
             }
             SessionUpdate::ElongationOrigins(origins) => {
-                self.elongation_origins = origins.into_iter().collect();
+                for (axis, origin) in origins {
+                    let before = self.elongation_origins.insert(axis, origin);
+                    if before.flatten().is_some_and(|b| Some(b) != origin) {
+                        self.drop_thermal_offset_draft(axis);
+                    }
+                }
             }
             SessionUpdate::WarmupReportSaved(result) => {
                 self.warmup.saving = false;

@@ -112,9 +112,28 @@ pub struct EstimateProposal {
 /// estimate would leave that growth uncorrected.
 pub fn elongation_counted_from(state: &HmiState, axis: AxisId) -> Result<String, String> {
     let measure = "measure the tool and press Tool measured on the Warm-up panel";
-    match state.elongation_origins.get(&axis).copied().flatten() {
-        Some(ElongationOrigin::ToolMeasured { time_s }) => Ok(format!(
-            "counted from the tool measurement at machine time {time_s:.1} s"
+    let origin = state.elongation_origin(axis);
+    // The origin and the frames travel separately: an origin newer than the newest frame
+    // belongs to estimates not shown yet.
+    if let Some(o) = origin
+        && state.latest.time_s().is_none_or(|t| t < o.time_s())
+    {
+        return Err(format!(
+            "the newest estimates are from before the count that starts at machine time {:.1} s",
+            o.time_s()
+        ));
+    }
+    match origin {
+        Some(ElongationOrigin::ToolMeasured {
+            time_s,
+            started_warm_K,
+        }) => Ok(format!(
+            "counted from the tool measurement at machine time {time_s:.1} s{}",
+            started_warm_K.map_or_else(String::new, |k| format!(
+                "; the spindle was {k:.1} K above the room when the estimates started, so for \
+                 the first hours the model's heat may read growth a spindle in balance does not \
+                 show"
+            ))
         )),
         Some(ElongationOrigin::FirstFrameAtRest { time_s }) => Ok(format!(
             "counted from the estimates' start at machine time {time_s:.1} s, the spindle at \

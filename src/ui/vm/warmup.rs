@@ -651,15 +651,7 @@ fn elongation(state: &HmiState, settings: &WarmupSettings) -> StepView {
         value("uncompensated", format!("{residual:.1}"), "µm"),
         value(
             "counted from machine time",
-            number(
-                state
-                    .elongation_origins
-                    .get(&axis)
-                    .copied()
-                    .flatten()
-                    .map(|o| o.time_s()),
-                1,
-            ),
+            number(state.elongation_origin(axis).map(|o| o.time_s()), 1),
             "s",
         ),
     ];
