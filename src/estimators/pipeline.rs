@@ -171,6 +171,14 @@ impl ElongationOrigin {
         }
     }
 
+    /// The stator's excess over the room of a start on a warm spindle, K.
+    pub fn warm_excess_K(&self) -> Option<f64> {
+        match *self {
+            ElongationOrigin::FirstFrameWarm { excess_K, .. } => Some(excess_K),
+            _ => None,
+        }
+    }
+
     /// Machine time the elongation counts from, s.
     pub fn time_s(&self) -> f64 {
         match *self {
@@ -268,11 +276,9 @@ struct SpindlePipeline {
     /// The operator measured the tool and the elongation has not counted from it yet (also
     /// before the first frame).
     tool_measured_pending: bool,
-    /// Whether the elongation has had a finite estimate since the start.
-    counted: bool,
-    /// The stator's excess over the room at the elongation's first finite estimate, when the
-    /// spindle was warm then: its elongation model's heat started at rest.
-    started_warm_K: Option<f64>,
+    /// What the spindle was at the elongation's first finite estimate since the start: a later
+    /// tool measurement carries its warmth (the model's heat started at rest).
+    start: Option<ElongationOrigin>,
 }
 
 /// Every estimator of a machine.
@@ -479,8 +485,7 @@ impl EstimatorPipeline {
                             },
                             elongation_origin: None,
                             tool_measured_pending: false,
-                            counted: false,
-                            started_warm_K: None,
+                            start: None,
                         });
                     }
                 }
@@ -654,17 +659,16 @@ impl EstimatorPipeline {
                 // does.
                 if spindle.elongation_origin.is_none() && spindle.estimate.elongation_um.is_finite()
                 {
-                    if !spindle.counted {
-                        spindle.counted = true;
-                        spindle.started_warm_K = warm_excess(frame[c.stator], ambient);
-                    }
+                    let start = *spindle.start.get_or_insert_with(|| {
+                        ElongationOrigin::at_first_frame(t, frame[c.stator], ambient)
+                    });
                     spindle.elongation_origin = Some(if spindle.tool_measured_pending {
                         ElongationOrigin::ToolMeasured {
                             time_s: t,
-                            started_warm_K: spindle.started_warm_K,
+                            started_warm_K: start.warm_excess_K(),
                         }
                     } else {
-                        ElongationOrigin::at_first_frame(t, frame[c.stator], ambient)
+                        start
                     });
                     spindle.tool_measured_pending = false;
                 }
