@@ -42,6 +42,16 @@ enum Grid {
     Real,
 }
 
+/// The real target read between two of its samples ([`Aligned::real_target_later`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reading {
+    /// The value read.
+    pub value: f64,
+    /// The share of one sample's white-noise variance that reading between two samples
+    /// averages away: 2 f (1 − f) at a fraction f of the way.
+    pub averaged: f64,
+}
+
 /// The two recordings joined on `time_s`.
 #[derive(Debug)]
 pub struct Aligned<'a> {
@@ -67,6 +77,11 @@ pub struct Aligned<'a> {
     pub sim_target: Vec<f64>,
     /// The real target's floor and the noise cut off there, when it has one.
     pub censoring: Option<Censoring>,
+    /// How many of its own samples later the real target is read ([`Aligned::read_later`]);
+    /// zero as recorded.
+    pub target_read_later: f64,
+    /// The real target as recorded on these rows, when it is read later.
+    pub recorded_target: Option<Vec<f64>>,
 }
 
 impl<'a> Aligned<'a> {
@@ -76,7 +91,74 @@ impl<'a> Aligned<'a> {
         real: &'a Recording,
         target: &str,
     ) -> Result<Self, DiscrepancyError> {
-        Self::join(sim, real, target, Grid::Auto)
+        Self::join(sim, real, target, Grid::Auto, 0.0)
+    }
+
+    /// Joins `sim` and `real` on time for `target` with the real target read `samples` of the
+    /// real recording's own samples later (earlier when negative; see
+    /// [`Aligned::real_target_later`]), every other column as recorded: a measurement of the
+    /// target that trails the simulation by that delay, compared with it where it was taken.
+    /// Only the rows whose later samples the recording holds are kept.
+    pub fn read_later(
+        sim: &'a Recording,
+        real: &'a Recording,
+        target: &str,
+        samples: f64,
+    ) -> Result<Self, DiscrepancyError> {
+        Self::join(sim, real, target, Grid::Auto, samples)
+    }
+
+    /// A column of the real recording on its own rows, as recorded.
+    pub fn real_samples(&self, name: &str) -> Option<&'a [f64]> {
+        self.real.try_column(name)
+    }
+
+    /// The real recording's median step, s.
+    pub fn real_step_s(&self) -> Option<f64> {
+        self.real.median_step_s()
+    }
+
+    /// The real target `samples` of its own samples later on each row ([`Aligned::read_later`]),
+    /// `None` on a row whose later samples the recording does not hold. Whole samples later,
+    /// each row is read with the weights it is read with at no delay; a fraction later, on the
+    /// line between the two samples there.
+    pub fn real_target_later(&self, target: &str, samples: f64) -> Option<Vec<Option<Reading>>> {
+        let column = self.real.try_column(target)?;
+        let whole = samples.fract() == 0.0;
+        let at = |position: f64| -> Option<(usize, f64)> {
+            let below = position.floor();
+            let row = usize::try_from(below as i64).ok()?;
+            (row + 1 < column.len()).then_some((row, position - below))
+        };
+        let moved: Vec<Option<(usize, f64)>> = self
+            .real_index
+            .iter()
+            .map(|&(j, f)| {
+                if whole {
+                    let row = usize::try_from(j as i64 + samples as i64).ok()?;
+                    (row < column.len()).then_some((row, f))
+                } else {
+                    at(j as f64 + f + samples)
+                }
+            })
+            .collect();
+        let inside: Vec<(usize, f64)> = moved.iter().flatten().copied().collect();
+        let mut values = interpolate(column, &inside).into_iter();
+        Some(
+            moved
+                .iter()
+                .map(|m| {
+                    let (_, f) = (*m)?;
+                    let value = values.next()?;
+                    // Only a fraction between the samples averages their noise.
+                    let f = if (0.0..=1.0).contains(&f) { f } else { 0.0 };
+                    Some(Reading {
+                        value,
+                        averaged: 2.0 * f * (1.0 - f),
+                    })
+                })
+                .collect(),
+        )
     }
 
     /// When the rows are the coarser simulation's instants: the same pair on the real
@@ -91,7 +173,14 @@ impl<'a> Aligned<'a> {
         if !self.builds_at_real_rate() {
             return None;
         }
-        Self::join(self.sim, self.real, target, Grid::Real).ok()
+        Self::join(
+            self.sim,
+            self.real,
+            target,
+            Grid::Real,
+            self.target_read_later,
+        )
+        .ok()
     }
 
     /// Where each aligned row lies among the real recording's rows from the one at
@@ -125,6 +214,7 @@ impl<'a> Aligned<'a> {
         real: &'a Recording,
         target: &str,
         grid: Grid,
+        read_later: f64,
     ) -> Result<Self, DiscrepancyError> {
         for (recording, role) in [(sim, "simulation"), (real, "real recording")] {
             if recording.try_column(target).is_none() {
@@ -177,7 +267,16 @@ impl<'a> Aligned<'a> {
             .then(|| inside(st))
             .filter(|time| time.len() >= MIN_ROWS);
         let on_simulation_grid = coarse.is_some();
-        let time = coarse.unwrap_or_else(|| inside(rt));
+        let mut time = coarse.unwrap_or_else(|| inside(rt));
+        if read_later != 0.0 {
+            // A row's place may move by one where the speeds place it (`placed_by_speeds`):
+            // a sample of margin each side keeps every later reading inside the recording.
+            let later = read_later.floor() as i64;
+            time.retain(|&t| {
+                let row = rt.partition_point(|&r| r <= t).saturating_sub(1) as i64 + later;
+                row >= 1 && row + 2 < rt.len() as i64
+            });
+        }
         if time.len() < MIN_ROWS {
             return Err(DiscrepancyError::TooShort {
                 rows: time.len(),
@@ -208,8 +307,21 @@ impl<'a> Aligned<'a> {
             real_target: Vec::new(),
             sim_target: Vec::new(),
             censoring: None,
+            target_read_later: read_later,
+            recorded_target: None,
         };
         aligned.real_target = aligned.real_column(target).unwrap_or_default();
+        if read_later != 0.0 {
+            let later = aligned.real_target_later(target, read_later);
+            let recorded = std::mem::take(&mut aligned.real_target);
+            aligned.real_target = later
+                .unwrap_or_default()
+                .into_iter()
+                .zip(&recorded)
+                .map(|(later, recorded)| later.map_or(*recorded, |l| l.value))
+                .collect();
+            aligned.recorded_target = Some(recorded);
+        }
         aligned.sim_target = aligned.sim_column(target).unwrap_or_default();
         aligned.censoring = Censoring::detect(&aligned.real_target, &aligned.sim_target);
         if let Some(censoring) = aligned.censoring {
@@ -758,6 +870,69 @@ pub(crate) mod tests {
             recording.push_row(&row).expect("a valid row");
         }
         recording
+    }
+
+    #[test]
+    fn the_real_target_is_read_later_on_its_own_samples() {
+        // A real torque (t²/4) every second, a simulation every five, over 400 s.
+        let header = || vec!["time_s".to_string(), "X.torque_Nm".to_string()];
+        let mut real = Recording::new("real", header()).expect("a valid header");
+        for i in 0..400 {
+            let t = i as f64;
+            real.push_row(&[t, t * t / 4.0]).expect("a valid row");
+        }
+        let mut sim_long = Recording::new("sim", header()).expect("a valid header");
+        for i in (0..400).step_by(5) {
+            sim_long.push_row(&[i as f64, 0.0]).expect("a valid row");
+        }
+        let aligned = Aligned::new(&sim_long, &real, "X.torque_Nm").expect("aligned");
+        assert!(aligned.on_simulation_grid);
+        let later = aligned
+            .real_target_later("X.torque_Nm", 3.0)
+            .expect("the target");
+        // Whole samples later: the sample itself, nothing averaged.
+        assert_eq!(
+            later[2],
+            Some(Reading {
+                value: 13.0 * 13.0 / 4.0,
+                averaged: 0.0
+            })
+        );
+        assert_eq!(later[79].map(|r| r.value), Some(398.0 * 398.0 / 4.0));
+        // Past the recording's end there is nothing to read.
+        let past = aligned
+            .real_target_later("X.torque_Nm", 5.0)
+            .expect("the target");
+        assert_eq!(past[79], None);
+        // A fraction later: on the line between the samples, half of a sample's white noise
+        // averaged away at halfway.
+        let between = aligned
+            .real_target_later("X.torque_Nm", -1.5)
+            .expect("the target");
+        assert_eq!(between[0], None);
+        assert_eq!(
+            between[1],
+            Some(Reading {
+                value: (3.0 * 3.0 + 4.0 * 4.0) / 8.0,
+                averaged: 0.5
+            })
+        );
+
+        let read = Aligned::read_later(&sim_long, &real, "X.torque_Nm", 3.0).expect("aligned");
+        // Only the rows whose later samples (and one each side) the recording holds.
+        assert_eq!(read.time.first(), Some(&0.0));
+        assert_eq!(read.time.last(), Some(&390.0));
+        assert_eq!(read.real_target[1], 8.0 * 8.0 / 4.0);
+        assert_eq!(
+            read.recorded_target.as_ref().map(|r| r[1]),
+            Some(5.0 * 5.0 / 4.0)
+        );
+        assert!(
+            Aligned::new(&sim_long, &real, "X.torque_Nm")
+                .expect("aligned")
+                .recorded_target
+                .is_none()
+        );
     }
 
     #[test]

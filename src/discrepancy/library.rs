@@ -2385,9 +2385,8 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
         free_start: None,
     });
     if let Some(coarse) = &ctx.too_coarse {
-        for physics in [Physics::ThermalInertia, Physics::SignalDelay] {
-            untested.push((physics, coarse.reason(&ctx.target)));
-        }
+        // A delay is tried on the real recording's own samples instead (`real_delay`).
+        untested.push((Physics::ThermalInertia, coarse.reason(&ctx.target)));
     } else if thermal {
         out.push(thermal_inertia_family(ctx, simulated.clone(), &taus));
     } else {

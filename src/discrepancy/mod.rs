@@ -39,6 +39,7 @@ pub mod cv;
 pub mod kept;
 pub mod library;
 pub mod localise;
+pub mod real_delay;
 pub mod report;
 pub mod select;
 pub mod series;
@@ -60,6 +61,7 @@ use crate::parallel::{join_or_resume, parallel_map};
 use align::Aligned;
 use cv::{Blocks, ModelGram, NormalEquations, TargetProducts, TargetStats, least_squares};
 use library::{Context, Family, Kind, WindingCause, families};
+use real_delay::RealDelay;
 use select::{JointModel, Member, Problem, Step, Store, stepwise};
 use series::{bin_means, bin_ranges, integrated_autocorrelation, mean};
 
@@ -544,7 +546,7 @@ fn leaves_gross_mismatch(floor: &NoiseFloor) -> bool {
 /// near the sample noise are kept. Nor is a span right where the simulation's instants do not
 /// hold the target's course: its mismatch there looks like noise from one instant to the next
 /// (1.25 N·m "from sample to sample" against a torque sensor's 0.02, test
-/// `a_delay_is_not_fitted_to_a_simulation_exported_too_coarsely_to_hold_it`).
+/// `a_delay_behind_a_simulation_exported_too_coarsely_to_move_is_read_on_the_real_samples`).
 fn spans_shown_right(agreement: Vec<Region>, floor: &NoiseFloor, ctx: &Context) -> Vec<Region> {
     if ctx.too_coarse.is_some() {
         return Vec::new();
@@ -566,11 +568,19 @@ fn analyse_watched(
     options: &Options,
     watch: &Watch<'_>,
 ) -> Result<DiscrepancyReport, DiscrepancyError> {
-    let report = analyse_with(sim, real, target, options, watch, None)?;
+    let report = analyse_with(sim, real, target, options, watch, None, None)?;
     let Some(cause) = winding_cause(sim, real, target, &report, options, watch)? else {
         return Ok(report);
     };
-    let inherited = analyse_with(sim, real, target, options, watch, Some(Arc::new(cause)))?;
+    let inherited = analyse_with(
+        sim,
+        real,
+        target,
+        options,
+        watch,
+        Some(Arc::new(cause)),
+        None,
+    )?;
     // Where the part named physics of its own, the second analysis stands only if it names
     // the winding's mismatch and predicts the held-out blocks better (both are measured on
     // the same blocks of the same rows): with more candidates its surrogates' maxima differ,
@@ -613,7 +623,7 @@ fn winding_cause(
     watch.report(LOCATE_AT, || {
         format!("a gross mismatch left: analysing the motor's winding ({winding})")
     })?;
-    let winding_report = match analyse_with(sim, real, &winding, options, watch, None) {
+    let winding_report = match analyse_with(sim, real, &winding, options, watch, None, None) {
         Ok(r) => r,
         Err(DiscrepancyError::Cancelled) => return Err(DiscrepancyError::Cancelled),
         // The winding cannot be analysed (too few rows where it reads): the part's report
@@ -642,6 +652,7 @@ fn analyse_with(
     options: &Options,
     watch: &Watch<'_>,
     winding_cause: Option<Arc<WindingCause>>,
+    read_later: Option<RealDelay>,
 ) -> Result<DiscrepancyReport, DiscrepancyError> {
     options.validate()?;
     for (role, recording) in [("simulation", sim), ("real recording", real)] {
@@ -655,14 +666,42 @@ fn analyse_with(
         }
     }
     watch.report(0.0, || "aligning the recordings".into())?;
-    let aligned = Aligned::new(sim, real, target)?;
+    let aligned = match read_later {
+        Some(delay) => Aligned::read_later(sim, real, target, delay.samples)?,
+        None => Aligned::new(sim, real, target)?,
+    };
     let n = aligned.len();
     let mut ctx = Context::new(&aligned, target);
+    // A simulation exported too coarsely to be moved is compared with the real target read
+    // later, when that predicts the held-out blocks better: the rest of the analysis then
+    // works on what the delay leaves.
+    if read_later.is_none() && ctx.too_coarse.is_some() {
+        watch.report(0.0, || "reading the real recording later".into())?;
+        if let Some(delay) = real_delay::search(&aligned, target, options) {
+            let cause = winding_cause.clone();
+            match analyse_with(sim, real, target, options, watch, cause, Some(delay)) {
+                // Too few rows hold the later readings: compared as recorded.
+                Err(DiscrepancyError::TooShort { .. }) => {}
+                done => return done,
+            }
+        }
+    }
     if let Some(cause) = winding_cause {
         ctx = ctx.with_winding_cause(cause);
     }
     let residual: Vec<f64> = aligned
         .real_target
+        .iter()
+        .zip(&aligned.sim_target)
+        .map(|(r, s)| r - s)
+        .collect();
+    // The real target as recorded, which the figures before any correction and the delay's
+    // own share are measured on.
+    let recorded_target = aligned
+        .recorded_target
+        .as_ref()
+        .unwrap_or(&aligned.real_target);
+    let recorded_residual: Vec<f64> = recorded_target
         .iter()
         .zip(&aligned.sim_target)
         .map(|(r, s)| r - s)
@@ -814,9 +853,8 @@ fn analyse_with(
     }
     watch.report(REFIT_AT, || "refitting on all rows".into())?;
     let full_blocks = Blocks::new(n, options.folds, options.blocks_per_fold);
-    let real_mean = mean(&aligned.real_target);
-    let ss_total: f64 = aligned
-        .real_target
+    let real_mean = mean(recorded_target);
+    let ss_total: f64 = recorded_target
         .iter()
         .map(|v| (v - real_mean).powi(2))
         .sum::<f64>()
@@ -994,6 +1032,16 @@ fn analyse_with(
             }
         }
     }
+    if let Some(delay) = read_later {
+        // Its share: the joint model refitted to the target as recorded loses it.
+        let without_delay = held_out_quality(&design, &recorded_residual, &full_blocks, ss_total);
+        findings.push(real_delay_finding(
+            target,
+            &delay,
+            held_out.last().map_or(0.0, |q| q.r2) - without_delay.r2,
+            aligned.real_step_s().unwrap_or(0.0),
+        ));
+    }
     // Strongest first: by what each finding adds to the joint model, not by when it entered
     // (a correction that entered first may have taken a share of a later one's effect).
     findings.sort_by(|a, b| b.delta_r2.total_cmp(&a.delta_r2));
@@ -1033,11 +1081,11 @@ fn analyse_with(
             standardised(&columns[1..].iter().map(|c| c.to_vec()).collect::<Vec<_>>());
         let mut cols: Vec<&[f64]> = vec![&ones];
         cols.extend(standard_cal.iter().map(|c| c.as_slice()));
-        held_out_quality(&cols, &residual, &full_blocks, ss_total)
+        held_out_quality(&cols, &recorded_residual, &full_blocks, ss_total)
     };
 
     // Mismatch: what the calibrated simulation does not explain (corrections + residual).
-    let mut mismatch: Vec<f64> = residual.iter().map(|r| r - offset).collect();
+    let mut mismatch: Vec<f64> = recorded_residual.iter().map(|r| r - offset).collect();
     for (k, s) in selected.iter().enumerate() {
         if families[s.family].kind == Kind::CalibrationGain {
             let g = raw_coefficients[offsets[k]];
@@ -1066,23 +1114,26 @@ fn analyse_with(
         .map(|i| design.iter().zip(&beta).map(|(c, b)| c[i] * b).sum())
         .collect();
     let plot_bins = bin_ranges(n, 4000);
+    // With a delay read from the real recording, the simulation moved that much later is
+    // what the real recording holds then: the target as recorded less the later reading.
     let corrected: Vec<f64> = aligned
         .sim_target
         .iter()
         .zip(&fitted)
-        .map(|(s, f)| s + f)
+        .zip(recorded_target.iter().zip(&aligned.real_target))
+        .map(|((s, f), (recorded, later))| s + f + (recorded - later))
         .collect();
     let plot = PlotData {
         target: target.to_string(),
         time_s: bin_means(&ctx.time, &plot_bins),
-        real: bin_means(&aligned.real_target, &plot_bins),
+        real: bin_means(recorded_target, &plot_bins),
         sim: bin_means(&aligned.sim_target, &plot_bins),
         corrected: bin_means(&corrected, &plot_bins),
-        residual_before: bin_means(&residual, &plot_bins),
+        residual_before: bin_means(&recorded_residual, &plot_bins),
         residual_after: bin_means(&cv_residual, &plot_bins),
         regions: located.mismatch.clone(),
     };
-    let baseline_sse: f64 = residual.iter().map(|r| r * r).sum();
+    let baseline_sse: f64 = recorded_residual.iter().map(|r| r * r).sum();
     let mut not_tested: Vec<NotTested> = untested
         .into_iter()
         .map(|(p, reason)| NotTested {
@@ -1126,29 +1177,75 @@ fn analyse_with(
             alpha: options.alpha,
             selection_rows: y_binned.len(),
             candidates: members.len(),
-            steps: steps
+            steps: read_later
                 .iter()
-                .zip(withdrawn)
-                .map(|(s, withdrawn)| report::StepTrace {
-                    physics: match families[members[s.member].family].kind {
-                        Kind::Physics(p) => p.id().to_string(),
-                        Kind::CalibrationGain => "calibration".to_string(),
-                    },
-                    relative_gain: if s.sse_before > 0.0 {
-                        s.gain / s.sse_before
-                    } else {
-                        0.0
-                    },
-                    p_value: s.p_value,
-                    tail_p: s.tail_p,
-                    accepted: s.accepted,
-                    withdrawn,
-                    after_refit: s.after_refit,
+                .map(|delay| report::StepTrace {
+                    physics: Physics::SignalDelay.id().to_string(),
+                    relative_gain: delay.relative_gain,
+                    p_value: delay.p_value,
+                    tail_p: delay.p_value,
+                    accepted: true,
+                    withdrawn: false,
+                    after_refit: false,
                 })
+                .chain(
+                    steps
+                        .iter()
+                        .zip(withdrawn)
+                        .map(|(s, withdrawn)| report::StepTrace {
+                            physics: match families[members[s.member].family].kind {
+                                Kind::Physics(p) => p.id().to_string(),
+                                Kind::CalibrationGain => "calibration".to_string(),
+                            },
+                            relative_gain: if s.sse_before > 0.0 {
+                                s.gain / s.sse_before
+                            } else {
+                                0.0
+                            },
+                            p_value: s.p_value,
+                            tail_p: s.tail_p,
+                            accepted: s.accepted,
+                            withdrawn,
+                            after_refit: s.after_refit,
+                        }),
+                )
                 .collect(),
         },
         plot,
     })
+}
+
+/// The finding of a delay read from the real recording's own samples ([`real_delay`]), with
+/// `delta_r2` its share in the joint model and `real_step_s` the samples' step.
+fn real_delay_finding(target: &str, delay: &RealDelay, delta_r2: f64, real_step_s: f64) -> Finding {
+    let d = delay.delay_s;
+    let how = format!(
+        "read on the real recording's own samples, every {real_step_s:.3} s, as the simulation's export is too coarse to be moved; transport delay, the simulated value itself, not scaled"
+    );
+    let explanation = if d >= 0.0 {
+        format!("the measured {target} trails the simulated one by {d:.1} s ({how})")
+    } else {
+        format!(
+            "the measured {target} runs {:.1} s ahead of the simulated one (the simulation is late; {how})",
+            -d
+        )
+    };
+    Finding {
+        physics: Physics::SignalDelay.id().to_string(),
+        explanation,
+        parameters: BTreeMap::from([
+            ("delay_s".to_string(), d),
+            ("share".to_string(), 1.0),
+            ("resolution_s".to_string(), real_step_s),
+        ]),
+        signals: vec![target.to_string()],
+        delta_r2,
+        p_value: delay.p_value,
+        indistinguishable_from: Vec::new(),
+        masked_by: None,
+        judged_after_refit: false,
+        alternatives: Vec::new(),
+    }
 }
 
 /// Held-out sum of squared errors of `y` on `columns` (the intercept first).

@@ -46,6 +46,10 @@ pub struct Finding {
     pub delta_r2: f64,
     /// Surrogate p-value: the share of phase-randomised residuals for which the best
     /// correction of the whole library did at least as well (resolution 1/(surrogates + 1)).
+    /// A delay read on the real recording's own samples (a simulation exported too coarsely
+    /// to be moved; its `resolution_s` parameter says so) has no fitted coefficient for a
+    /// surrogate to fit: its p-value is the one-sided paired t-test of the held-out blocks'
+    /// errors with and without it, each fold's delay chosen on the other folds.
     pub p_value: f64,
     /// Other physics that fit these data about as well (the data cannot tell them apart).
     pub indistinguishable_from: Vec<String>,

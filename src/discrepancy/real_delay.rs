@@ -1,0 +1,324 @@
+//! A signal delay found by reading the real recording later, where the simulation is exported
+//! too coarsely to be moved.
+//!
+//! A delay is otherwise a correction like any other: the simulated target moved later, its
+//! share fitted ([`super::library`]). A simulation exported every few seconds of a torque that
+//! reverses every few seconds cannot be moved: read between its instants it is a line across
+//! the very changes a delay would move ([`super::library::TooCoarse`]). The real recording is
+//! finer, and it can: a measurement that trails by `d` reads at `t + d` what the simulation
+//! holds at `t`. So each delay is tried by comparing the real target `d` later with the
+//! simulation at its own instants. The comparison's coefficient is fixed at one (the later
+//! reading is the simulated value, nothing scaled): a fitted coefficient on the real target's
+//! own changes would let its noise fit itself, a fixed one cannot gain from noise, and a
+//! simulation that is not late only loses by it (its changes then land at the wrong
+//! instants).
+
+use super::Options;
+use super::align::Aligned;
+use super::cv::Blocks;
+use crate::fit::autocorrelation::white_noise_from_differences;
+use crate::fit::distributions::student_t_two_sided_p;
+use crate::parallel::parallel_map;
+
+/// Delays tried in every sample of the real recording, each way; beyond, the steps grow by
+/// a tenth and the best is refined to the sample between its neighbours (as
+/// [`super::library`]'s delay grid).
+const EVERY_SAMPLE_UP_TO: isize = 60;
+
+/// The longest delay tried: a tenth of the recording, at most this, s (as the simulation's
+/// own delays).
+const LONGEST_DELAY_S: f64 = 600.0;
+
+/// Steps of a sample in which the best whole delay is refined: twentieths.
+const STEPS_PER_SAMPLE: i64 = 20;
+
+/// A delay of the real target behind the simulation, found on the real recording's samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RealDelay {
+    /// How many of the real recording's samples later the real target matches the
+    /// simulation (negative: earlier), to a twentieth of a sample.
+    pub samples: f64,
+    /// The same in seconds (the real recording's median step times `samples`).
+    pub delay_s: f64,
+    /// The held-out gain (each fold's delay chosen on the other folds) over the held-out
+    /// error at no delay.
+    pub relative_gain: f64,
+    /// One-sided p-value of the paired comparison of the held-out blocks' errors with and
+    /// without the delay.
+    pub p_value: f64,
+}
+
+/// Per block: rows compared, and the sum and sum of squares of the later real target less the
+/// simulation on them. Each square carries back the white noise that reading between two
+/// samples averages away, so that a delay between samples is not preferred for that alone.
+#[derive(Debug, Clone)]
+struct BlockSums {
+    count: Vec<f64>,
+    sum: Vec<f64>,
+    squares: Vec<f64>,
+}
+
+impl BlockSums {
+    fn of(
+        aligned: &Aligned<'_>,
+        target: &str,
+        blocks: &Blocks,
+        noise_variance: f64,
+        steps: i64,
+    ) -> BlockSums {
+        let samples = steps as f64 / STEPS_PER_SAMPLE as f64;
+        let later = aligned
+            .real_target_later(target, samples)
+            .unwrap_or_default();
+        let mut sums = BlockSums {
+            count: vec![0.0; blocks.len()],
+            sum: vec![0.0; blocks.len()],
+            squares: vec![0.0; blocks.len()],
+        };
+        for (b, range) in blocks.ranges.iter().enumerate() {
+            for row in range.clone() {
+                let Some(Some(real)) = later.get(row) else {
+                    continue;
+                };
+                let r = real.value - aligned.sim_target[row];
+                if r.is_finite() {
+                    sums.count[b] += 1.0;
+                    sums.sum[b] += r;
+                    sums.squares[b] += r * r + real.averaged * noise_variance;
+                }
+            }
+        }
+        sums
+    }
+
+    /// Mean and mean square over the blocks `take` admits.
+    fn moments(&self, take: impl Fn(usize) -> bool) -> Option<(f64, f64)> {
+        let (mut n, mut s, mut q) = (0.0, 0.0, 0.0);
+        for b in (0..self.count.len()).filter(|&b| take(b)) {
+            n += self.count[b];
+            s += self.sum[b];
+            q += self.squares[b];
+        }
+        (n > 0.0).then(|| (s / n, q / n))
+    }
+
+    /// Mean squared error about its own mean over the blocks `take` admits.
+    fn spread(&self, take: impl Fn(usize) -> bool) -> Option<f64> {
+        self.moments(take).map(|(m, q)| (q - m * m).max(0.0))
+    }
+
+    /// Block `b`'s mean squared error about `offset`.
+    fn block_error(&self, b: usize, offset: f64) -> Option<f64> {
+        let n = self.count[b];
+        (n > 0.0).then(|| (self.squares[b] - 2.0 * offset * self.sum[b]) / n + offset * offset)
+    }
+}
+
+/// Block sums by delay (in [`STEPS_PER_SAMPLE`]ths of a sample), built as they are asked for.
+struct Tried<'a> {
+    aligned: &'a Aligned<'a>,
+    target: &'a str,
+    blocks: &'a Blocks,
+    noise_variance: f64,
+    sums: Vec<(i64, BlockSums)>,
+}
+
+impl Tried<'_> {
+    fn get(&mut self, steps: i64) -> &BlockSums {
+        let at = match self.sums.iter().position(|(s, _)| *s == steps) {
+            Some(at) => at,
+            None => {
+                let sums = BlockSums::of(
+                    self.aligned,
+                    self.target,
+                    self.blocks,
+                    self.noise_variance,
+                    steps,
+                );
+                self.sums.push((steps, sums));
+                self.sums.len() - 1
+            }
+        };
+        &self.sums[at].1
+    }
+
+    /// The least error over the blocks `take` admits among `candidates` (in steps), and
+    /// where.
+    fn least(
+        &mut self,
+        candidates: impl Iterator<Item = i64>,
+        take: &impl Fn(usize) -> bool,
+    ) -> Option<(i64, f64)> {
+        let mut best: Option<(i64, f64)> = None;
+        for steps in candidates {
+            if let Some(e) = self.get(steps).spread(take)
+                && best.is_none_or(|(_, b)| e < b)
+            {
+                best = Some((steps, e));
+            }
+        }
+        best
+    }
+
+    /// The delay whose error over the blocks `take` admits is least: among `grid` (whole
+    /// samples), then every whole sample between its neighbours there, then, when that is
+    /// not zero, every step within a sample of it. Whether there is a delay at all is decided
+    /// on whole samples, read as the rows are read at no delay: between two samples the rows
+    /// where a speed steps are read on the plain line ([`Aligned::real_target_later`]), and
+    /// a fraction of a sample fitted those rows better than their reading as recorded (a torque
+    /// with its Coulomb friction left out, 0.1 s "late").
+    fn best(&mut self, grid: &[isize], take: &impl Fn(usize) -> bool) -> i64 {
+        let per = STEPS_PER_SAMPLE;
+        let whole = |s: isize| s as i64 * per;
+        let Some((at, _)) = self.least(grid.iter().map(|&s| whole(s)), take) else {
+            return 0;
+        };
+        let k = grid.partition_point(|&s| whole(s) < at);
+        let low = if k > 0 { grid[k - 1] + 1 } else { grid[k] };
+        let high = grid.get(k + 1).map_or(grid[k], |&next| next - 1);
+        let at = self
+            .least((low..=high).map(whole), take)
+            .map_or(at, |(s, _)| s);
+        if at == 0 {
+            return 0;
+        }
+        self.least(at - per + 1..at + per, take)
+            .map_or(at, |(s, _)| s)
+    }
+}
+
+/// The delays tried, in order: every sample up to [`EVERY_SAMPLE_UP_TO`] each way, then
+/// growing by a tenth up to `reach` samples.
+fn delay_grid(reach: isize) -> Vec<isize> {
+    let mut ahead = Vec::new();
+    let mut samples: isize = 1;
+    while samples <= reach {
+        ahead.push(samples);
+        samples = if samples < EVERY_SAMPLE_UP_TO {
+            samples + 1
+        } else {
+            ((samples as f64) * 1.1).round() as isize
+        };
+    }
+    let mut grid: Vec<isize> = ahead.iter().rev().map(|s| -s).collect();
+    grid.push(0);
+    grid.extend(ahead);
+    grid
+}
+
+/// The real target's delay behind the simulation, read on the real recording's own samples,
+/// when one predicts the held-out blocks materially (at least the options' smallest relative
+/// gain) and significantly (the options' alpha) better than none. Each fold's delay is chosen
+/// on the other folds; the delay returned is the one all rows choose.
+pub fn search(aligned: &Aligned<'_>, target: &str, options: &Options) -> Option<RealDelay> {
+    let step = aligned.real_step_s().filter(|s| *s > 0.0)?;
+    let (first, last) = (aligned.time.first()?, aligned.time.last()?);
+    let longest = (0.1 * (last - first)).min(LONGEST_DELAY_S);
+    let reach = (longest / step).floor() as isize;
+    if reach < 1 {
+        return None;
+    }
+    let blocks = Blocks::new(aligned.len(), options.folds, options.blocks_per_fold);
+    let noise_variance = white_noise_from_differences(aligned.real_samples(target)?).powi(2);
+    let grid = delay_grid(reach);
+    let built = parallel_map(&grid, |&s| {
+        let steps = s as i64 * STEPS_PER_SAMPLE;
+        (
+            steps,
+            BlockSums::of(aligned, target, &blocks, noise_variance, steps),
+        )
+    });
+    let mut tried = Tried {
+        aligned,
+        target,
+        blocks: &blocks,
+        noise_variance,
+        sums: built,
+    };
+    let everywhere = tried.best(&grid, &|_| true);
+    if everywhere == 0 {
+        return None;
+    }
+    let mut with = Vec::new();
+    let mut without = Vec::new();
+    for fold in &blocks.folds {
+        let training = |b: usize| !fold.excluded.contains(&b);
+        let chosen = tried.best(&grid, &training);
+        let offset_of =
+            |tried: &mut Tried<'_>, s: i64| tried.get(s).moments(training).map_or(0.0, |(m, _)| m);
+        let (chosen_offset, none_offset) =
+            (offset_of(&mut tried, chosen), offset_of(&mut tried, 0));
+        for b in fold.test.clone() {
+            let later = tried.get(chosen).block_error(b, chosen_offset);
+            let recorded = tried.get(0).block_error(b, none_offset);
+            if let (Some(later), Some(recorded)) = (later, recorded) {
+                let rows = blocks.ranges[b].len() as f64;
+                with.push(later * rows);
+                without.push(recorded * rows);
+            }
+        }
+    }
+    let before: f64 = without.iter().sum();
+    let gain = before - with.iter().sum::<f64>();
+    let relative_gain = if before > 0.0 { gain / before } else { 0.0 };
+    let p_value = one_sided_paired_p(&without, &with);
+    let samples = everywhere as f64 / STEPS_PER_SAMPLE as f64;
+    (relative_gain >= options.min_relative_gain && p_value <= options.alpha).then_some(RealDelay {
+        samples,
+        delay_s: samples * step,
+        relative_gain,
+        p_value,
+    })
+}
+
+/// One-sided p-value that `before` exceeds `after`, paired (Student's t over the pairs).
+fn one_sided_paired_p(before: &[f64], after: &[f64]) -> f64 {
+    let d: Vec<f64> = before.iter().zip(after).map(|(b, a)| b - a).collect();
+    if d.len() < 2 {
+        return 1.0;
+    }
+    let n = d.len() as f64;
+    let m = d.iter().sum::<f64>() / n;
+    let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+    let t = if var > 0.0 {
+        m / (var / n).sqrt()
+    } else if m > 0.0 {
+        f64::INFINITY
+    } else {
+        return 1.0;
+    };
+    let two_sided = student_t_two_sided_p(t, n - 1.0);
+    if !two_sided.is_finite() {
+        return 1.0;
+    }
+    if t > 0.0 {
+        two_sided / 2.0
+    } else {
+        1.0 - two_sided / 2.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_grid_takes_every_sample_then_grows_by_a_tenth_both_ways() {
+        let grid = delay_grid(80);
+        assert_eq!(grid.len(), 2 * (60 + 3) + 1, "{grid:?}");
+        assert_eq!(&grid[grid.len() - 4..], &[60, 66, 73, 80]);
+        assert_eq!(grid[0], -80);
+        assert!(grid.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(delay_grid(0), vec![0]);
+    }
+
+    #[test]
+    fn the_paired_test_is_one_sided() {
+        let before = [5.0, 6.0, 5.5, 6.2, 5.9, 6.1];
+        let after = [1.0, 1.1, 0.9, 1.2, 1.0, 1.05];
+        assert!(one_sided_paired_p(&before, &after) < 1e-4);
+        assert!(one_sided_paired_p(&after, &before) > 0.999);
+        assert_eq!(one_sided_paired_p(&[1.0], &[0.0]), 1.0);
+        assert_eq!(one_sided_paired_p(&[1.0, 1.0], &[1.0, 1.0]), 1.0);
+    }
+}
