@@ -121,8 +121,14 @@ impl<'a> Aligned<'a> {
     /// The real target `samples` of its own samples later on each row ([`Aligned::read_later`]),
     /// `None` on a row whose later samples the recording does not hold. Whole samples later,
     /// each row is read with the weights it is read with at no delay; a fraction later, on the
-    /// line between the two samples there.
-    pub fn real_target_later(&self, target: &str, samples: f64) -> Option<Vec<Option<Reading>>> {
+    /// line between the two samples there, or, `placed`, where a step of a speed between them
+    /// places the row ([`Aligned::place_later`]).
+    pub fn real_target_later(
+        &self,
+        target: &str,
+        samples: f64,
+        placed: bool,
+    ) -> Option<Vec<Option<Reading>>> {
         let column = self.real.try_column(target)?;
         let whole = samples.fract() == 0.0;
         let at = |position: f64| -> Option<(usize, f64)> {
@@ -130,7 +136,7 @@ impl<'a> Aligned<'a> {
             let row = usize::try_from(below as i64).ok()?;
             (row + 1 < column.len()).then_some((row, position - below))
         };
-        let moved: Vec<Option<(usize, f64)>> = self
+        let mut moved: Vec<Option<(usize, f64)>> = self
             .real_index
             .iter()
             .map(|&(j, f)| {
@@ -142,6 +148,9 @@ impl<'a> Aligned<'a> {
                 }
             })
             .collect();
+        if placed && !whole {
+            self.place_later(&mut moved, samples);
+        }
         let inside: Vec<(usize, f64)> = moved.iter().flatten().copied().collect();
         let mut values = interpolate(column, &inside).into_iter();
         Some(
@@ -159,6 +168,81 @@ impl<'a> Aligned<'a> {
                 })
                 .collect(),
         )
+    }
+
+    /// Places each reading `samples` (a fraction of a sample) later whose two samples straddle
+    /// a step of a speed by where the row's instant falls in that step, as the rows themselves
+    /// are placed ([`placed_by_speeds`]): a sample of the target was taken `samples` after the
+    /// machine was where it shows, so each sample's speed is the real speed read that much
+    /// earlier, and the simulation's speed at the row says on which side of the step the row
+    /// lies. On the line between two samples across a reversal the reading is neither side's
+    /// torque; placed, it is the side the row is on (the sample on that side was taken after
+    /// the reversal, or before it, whichever the row's own speed shows).
+    fn place_later(&self, moved: &mut [Option<(usize, f64)>], samples: f64) {
+        let guides: Vec<(Vec<f64>, Vec<f64>, f64, f64)> = self
+            .real
+            .names()
+            .iter()
+            .filter(|name| {
+                matches!(
+                    Channel::parse(name),
+                    Channel::Servo {
+                        quantity: Quantity::Speed,
+                        ..
+                    }
+                )
+            })
+            .filter_map(|name| {
+                let own = self.real.try_column(name)?;
+                let simulated = self.sim.try_column(name)?;
+                let (lo, hi) = series::span(own);
+                let range = hi - lo;
+                if !(range.is_finite() && range > 0.0) {
+                    return None;
+                }
+                let earlier = (0..own.len())
+                    .map(|i| read_at_position(own, i as f64 - samples))
+                    .collect();
+                // The real speed's own noise: the simulation's samples, a coarse export's,
+                // differ from one to the next by what the speed did between them.
+                let noise = noise_while_moving(own);
+                Some((
+                    earlier,
+                    interpolate(simulated, &self.sim_index),
+                    noise,
+                    range,
+                ))
+            })
+            .collect();
+        let index: Index = moved.iter().map(|m| m.unwrap_or((0, 0.0))).collect();
+        let speeds: Vec<GuidingSpeed<'_>> = guides
+            .iter()
+            .map(|(own, at, noise, range)| GuidingSpeed {
+                own,
+                at: at.clone(),
+                noise: *noise,
+                range: *range,
+            })
+            .filter(|speed| speed.agrees(&index))
+            .collect();
+        if speeds.is_empty() {
+            return;
+        }
+        for (row, reading) in moved.iter_mut().enumerate() {
+            let Some((j, fraction)) = reading else {
+                continue;
+            };
+            if *fraction <= COINCIDING || *fraction >= 1.0 - COINCIDING {
+                continue;
+            }
+            if let Some((_, at)) = speeds
+                .iter()
+                .filter_map(|speed| speed.place(*j, row))
+                .max_by(|a, b| a.0.total_cmp(&b.0))
+            {
+                *fraction = at;
+            }
+        }
     }
 
     /// When the rows are the coarser simulation's instants: the same pair on the real
@@ -312,7 +396,7 @@ impl<'a> Aligned<'a> {
         };
         aligned.real_target = aligned.real_column(target).unwrap_or_default();
         if read_later != 0.0 {
-            let later = aligned.real_target_later(target, read_later);
+            let later = aligned.real_target_later(target, read_later, true);
             let recorded = std::mem::take(&mut aligned.real_target);
             aligned.real_target = later
                 .unwrap_or_default()
@@ -807,6 +891,21 @@ fn noise_while_moving(values: &[f64]) -> f64 {
     }
 }
 
+/// `values` read at a position in samples (on the line between the two around it), the
+/// first or last sample beyond the ends.
+fn read_at_position(values: &[f64], position: f64) -> f64 {
+    let last = values.len().saturating_sub(1);
+    if position <= 0.0 || last == 0 {
+        return values.first().copied().unwrap_or(f64::NAN);
+    }
+    let below = position.floor() as usize;
+    if below >= last {
+        return values[last];
+    }
+    let fraction = position - below as f64;
+    values[below] + fraction * (values[below + 1] - values[below])
+}
+
 /// `column` read at `index` by linear interpolation. A fraction outside [0, 1] (an instant
 /// [`placed_by_speeds`] put on one side of a step, read on the line through that side's own
 /// interval) is extended only where the column moves steadily on that side: its change
@@ -888,7 +987,7 @@ pub(crate) mod tests {
         let aligned = Aligned::new(&sim_long, &real, "X.torque_Nm").expect("aligned");
         assert!(aligned.on_simulation_grid);
         let later = aligned
-            .real_target_later("X.torque_Nm", 3.0)
+            .real_target_later("X.torque_Nm", 3.0, true)
             .expect("the target");
         // Whole samples later: the sample itself, nothing averaged.
         assert_eq!(
@@ -901,13 +1000,13 @@ pub(crate) mod tests {
         assert_eq!(later[79].map(|r| r.value), Some(398.0 * 398.0 / 4.0));
         // Past the recording's end there is nothing to read.
         let past = aligned
-            .real_target_later("X.torque_Nm", 5.0)
+            .real_target_later("X.torque_Nm", 5.0, true)
             .expect("the target");
         assert_eq!(past[79], None);
         // A fraction later: on the line between the samples, half of a sample's white noise
         // averaged away at halfway.
         let between = aligned
-            .real_target_later("X.torque_Nm", -1.5)
+            .real_target_later("X.torque_Nm", -1.5, false)
             .expect("the target");
         assert_eq!(between[0], None);
         assert_eq!(
@@ -933,6 +1032,59 @@ pub(crate) mod tests {
                 .recorded_target
                 .is_none()
         );
+    }
+
+    #[test]
+    fn a_reading_between_two_samples_across_a_reversal_is_placed_on_the_rows_side() {
+        // The axis reverses 0.3 s after every tenth second; its torque follows the direction
+        // and is measured 2.5 s late, every second. The simulation: every five seconds.
+        let speed = |t: f64| {
+            if ((t - 0.3) / 10.0).floor() as i64 % 2 == 0 {
+                100.0
+            } else {
+                -100.0
+            }
+        };
+        let torque = |t: f64| speed(t) / 100.0;
+        let header = || {
+            ["time_s", "X.speed_rpm", "X.torque_Nm"]
+                .map(String::from)
+                .to_vec()
+        };
+        let mut real = Recording::new("real", header()).expect("a valid header");
+        for i in 0..400 {
+            let t = i as f64;
+            real.push_row(&[t, speed(t), torque(t - 2.5)])
+                .expect("a valid row");
+        }
+        let mut sim = Recording::new("sim", header()).expect("a valid header");
+        for i in (0..400).step_by(5) {
+            let t = i as f64;
+            sim.push_row(&[t, speed(t), torque(t)])
+                .expect("a valid row");
+        }
+        let aligned = Aligned::new(&sim, &real, "X.torque_Nm").expect("aligned");
+        let read = |placed| {
+            aligned
+                .real_target_later("X.torque_Nm", 2.5, placed)
+                .expect("the target")
+        };
+        let (plain, placed) = (read(false), read(true));
+        let mut reversals = 0;
+        for (row, &t) in aligned.time.iter().enumerate() {
+            let Some(reading) = placed[row] else {
+                continue;
+            };
+            // Placed, every row reads the torque the machine had at its instant.
+            assert_eq!(reading.value, torque(t), "placed at {t} s");
+            if t as i64 % 10 == 0 && t > 0.0 {
+                // 0.3 s before a reversal: the two samples around 2.5 s later straddle it.
+                reversals += 1;
+                assert_eq!(plain[row].map(|r| r.value), Some(0.0), "plain at {t} s");
+                assert_eq!(reading.averaged, 0.0);
+            }
+        }
+        assert!(reversals >= 30, "{reversals}");
     }
 
     #[test]

@@ -67,8 +67,11 @@ impl BlockSums {
         steps: i64,
     ) -> BlockSums {
         let samples = steps as f64 / STEPS_PER_SAMPLE as f64;
+        // On the plain line between two samples: across a reversal that reading depends on
+        // how far between them the delay falls, which a placed one hardly does
+        // (`Aligned::place_later`); the analysis then reads the delay found, placed.
         let later = aligned
-            .real_target_later(target, samples)
+            .real_target_later(target, samples, false)
             .unwrap_or_default();
         let mut sums = BlockSums {
             count: vec![0.0; blocks.len()],
