@@ -790,6 +790,65 @@ fn a_recording_that_starts_mid_shift_reads_warm_parts_from_its_first_row() {
     assert!(notes.contains("the profile has no warm start"), "{notes}");
 }
 
+/// `estimate` says where the spindle's elongation counts from: a recording from the start of
+/// a shift, from its first row with the spindle at rest; one from mid-shift, from its first
+/// row on a warm spindle, whose growth before then the estimate does not hold.
+#[test]
+fn estimate_says_where_the_spindle_elongation_counts_from() {
+    let dir = tempfile::tempdir().unwrap();
+    let shift = simulate(
+        dir.path(),
+        "shift.csv",
+        &["--scenario", "production", "--hours", "2", "--seed", "11"],
+    );
+    let mid_shift = dir.path().join("from-mid-shift.csv");
+    rows_from(&shift, &mid_shift, 3600.0);
+    let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+    let origin_of = |recording: &std::path::Path| {
+        let json = dir.path().join("report.json");
+        let out = servosight(&[
+            "estimate",
+            "--profile",
+            arg(&profile),
+            "--recording",
+            arg(recording),
+            "--json",
+            arg(&json),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let origins = report["elongation_origins"].as_array().unwrap().clone();
+        assert_eq!(origins.len(), 1, "{origins:?}");
+        assert_eq!(origins[0]["axis"], "S");
+        let human = servosight(&[
+            "estimate",
+            "--profile",
+            arg(&profile),
+            "--recording",
+            arg(recording),
+        ]);
+        (origins[0]["counted_from"].clone(), stdout(&human))
+    };
+    let (from_rest, text) = origin_of(&shift);
+    assert_eq!(from_rest["kind"], "first_frame_at_rest", "{from_rest}");
+    assert_eq!(from_rest["time_s"], 0.0, "{from_rest}");
+    assert!(
+        text.contains("elongation S counted from the first estimate, at machine time 0.0 s, the spindle at rest then"),
+        "{text}"
+    );
+    let (warm, text) = origin_of(&mid_shift);
+    assert_eq!(warm["kind"], "first_frame_warm", "{warm}");
+    let time_s = warm["time_s"].as_f64().unwrap();
+    assert!((3600.0..3601.0).contains(&time_s), "{warm}");
+    let excess = warm["excess_K"].as_f64().unwrap();
+    assert!(excess > 2.0, "{warm}");
+    assert!(
+        text.contains("the growth before then is not in it"),
+        "{text}"
+    );
+}
+
 /// Calibration fits every part's warm start, and says which calibration recording starts on a
 /// warm machine (its heat terms are accumulated from rest at its first row, so it biases the
 /// heat models) and which does not.

@@ -7,6 +7,8 @@ use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::abnormality::{AbnormalityState, judge};
 use servosight::estimators::accuracy::{AccuracyRow, StreamError, StreamedRun, run_streaming};
+use servosight::estimators::models::WARM_START_FLOOR_K;
+use servosight::estimators::pipeline::ElongationOrigin;
 use servosight::profile::MachineProfile;
 use servosight::signal::{RecordingReader, RecordingWriter, Schema};
 
@@ -34,7 +36,35 @@ struct Report<'a> {
     rows: usize,
     accuracy: &'a [AccuracyRow],
     abnormality: Vec<AbnormalityRow>,
+    elongation_origins: Vec<ElongationOriginRow>,
     notes: Vec<String>,
+}
+
+/// Where a spindle's estimated elongation counts from: the growth before then is not in it.
+#[derive(Debug, serde::Serialize)]
+struct ElongationOriginRow {
+    axis: String,
+    /// `null` while no finite estimate has been made.
+    counted_from: Option<ElongationOrigin>,
+}
+
+/// [`ElongationOriginRow`] in words.
+fn describe_origin(origin: Option<ElongationOrigin>) -> String {
+    match origin {
+        Some(ElongationOrigin::FirstFrameAtRest { time_s }) => format!(
+            "the first estimate, at machine time {time_s:.1} s, the spindle at rest then (its stator no more than {WARM_START_FLOOR_K} K above the room)"
+        ),
+        Some(ElongationOrigin::FirstFrameWarm { time_s, excess_K }) => format!(
+            "the first estimate, at machine time {time_s:.1} s, the spindle {excess_K:.1} K above the room then: the growth before then is not in it"
+        ),
+        Some(ElongationOrigin::FirstFrameUnread { time_s }) => format!(
+            "the first estimate, at machine time {time_s:.1} s, without a room or stator reading that says whether the spindle was at rest"
+        ),
+        Some(ElongationOrigin::ToolMeasured { time_s, .. }) => {
+            format!("the tool measurement at machine time {time_s:.1} s")
+        }
+        None => "nothing yet: no finite estimate".into(),
+    }
 }
 
 /// One axis's motor abnormality score at the end of the recording.
@@ -178,6 +208,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         rows: series.rows,
         accuracy: rows,
         abnormality,
+        elongation_origins: series
+            .elongation_origins
+            .iter()
+            .map(|&(axis, counted_from)| ElongationOriginRow {
+                axis: axis.to_string(),
+                counted_from,
+            })
+            .collect(),
         notes: series.notes.clone(),
     };
     emit_report(args.json.as_deref(), &report, || {
@@ -229,6 +267,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 row.axis,
                 row.state.label(),
                 row.reason
+            )?;
+        }
+        for row in &report.elongation_origins {
+            outln!(
+                "elongation {} counted from {}",
+                row.axis,
+                describe_origin(row.counted_from)
             )?;
         }
         for note in &series.notes {

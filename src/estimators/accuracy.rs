@@ -9,7 +9,7 @@ use crate::signal::{AxisId, Recording, RecordingError, RecordingReader};
 
 use super::abnormality::AbnormalityScore;
 
-use super::pipeline::{EstimateOutput, EstimatorPipeline, PipelineError};
+use super::pipeline::{ElongationOrigin, EstimateOutput, EstimatorPipeline, PipelineError};
 
 /// Every estimate over a recording, column by column.
 #[derive(Debug, Clone)]
@@ -66,6 +66,9 @@ pub struct StreamedRun {
     pub unknown_somewhere: Vec<bool>,
     /// Each axis's motor abnormality score at the end of the recording.
     pub abnormality: Vec<(AxisId, AbnormalityScore)>,
+    /// Where each spindle's elongation counts from at the end of the recording (`None`: no
+    /// finite estimate yet).
+    pub elongation_origins: Vec<(AxisId, Option<ElongationOrigin>)>,
     /// What could not be estimated, and why.
     pub notes: Vec<String>,
 }
@@ -131,6 +134,7 @@ pub fn run_streaming<R: Read>(
         .collect();
     Ok(StreamedRun {
         abnormality: pipeline.abnormality_scores(),
+        elongation_origins: pipeline.elongation_origins(),
         notes: pipeline.notes().to_vec(),
         outputs,
         rows,

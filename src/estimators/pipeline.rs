@@ -124,8 +124,10 @@ pub struct SpindleEstimate {
 
 /// Where a spindle's elongation counts from: the estimate is the growth since then, and a
 /// tool-length correction built on it is right only if the tool was measured then, or on a
-/// spindle as cold as it was then.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// spindle as cold as it was then. In JSON: `{"kind": "first_frame_warm", "time_s": …,
+/// "excess_K": …}`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ElongationOrigin {
     /// The first frame, with the stator no more than [`WARM_START_FLOOR_K`] above the room: a
     /// spindle at rest, as it is when a tool is measured at the start of a shift.
