@@ -487,7 +487,15 @@ fn a_delay_behind_a_simulation_exported_too_coarsely_to_move_is_read_on_the_real
         .collect();
     let report = compare(&exported, &delayed, "X.torque_Nm");
     assert_eq!(report["alignment"]["on_simulation_grid"], true);
+    assert_eq!(report["verdict"], "missing_physics", "{report}");
     assert_named_first(&report, "signal_delay");
+    assert_eq!(report["alignment"]["read_later_s"], 15.0, "{report}");
+    assert!(
+        report["alignment"]["note"]
+            .as_str()
+            .is_some_and(|n| n.contains("the real target was read 15.00 s later")),
+        "{report}"
+    );
     let delay = &report["findings"][0];
     let delay_s = parameter(delay, "delay_s");
     assert!((delay_s - 15.0).abs() <= 0.5, "delay {delay_s} s: {report}");
@@ -527,6 +535,10 @@ fn a_delay_behind_a_simulation_exported_too_coarsely_to_move_is_read_on_the_real
 
     let on_time = compare(&exported, &real, "X.torque_Nm");
     assert_eq!(on_time["verdict"], "consistent", "{on_time}");
+    assert_eq!(
+        on_time["alignment"]["read_later_s"],
+        serde_json::Value::Null
+    );
 }
 
 /// A torque that swings by ±0.3 N·m every ten minutes for no reason the vocabulary knows

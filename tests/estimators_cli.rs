@@ -14,6 +14,27 @@ fn simulate(dir: &std::path::Path, name: &str, args: &[&str]) -> std::path::Path
     path
 }
 
+/// `servosight estimate` of `recording` with `profile`, its JSON report written in `dir` and
+/// read back.
+fn estimate_report(
+    dir: &std::path::Path,
+    profile: &std::path::Path,
+    recording: &std::path::Path,
+) -> serde_json::Value {
+    let json = dir.join("estimate-report.json");
+    let run = servosight(&[
+        "estimate",
+        "--profile",
+        arg(profile),
+        "--recording",
+        arg(recording),
+        "--json",
+        arg(&json),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
 /// Backlash from 5 to 60 µm, at several noise levels: within max(1 µm, 3 %) (issue 4's proof).
 #[test]
 fn backlash_is_found_within_a_micrometre_or_three_percent() {
@@ -243,19 +264,7 @@ fn calibrate_then_estimate_end_to_end() {
         ],
     );
     let abnormality = |recording: &std::path::Path| {
-        let json = dir.path().join("abnormality.json");
-        let run = servosight(&[
-            "estimate",
-            "--profile",
-            arg(&profile),
-            "--recording",
-            arg(recording),
-            "--json",
-            arg(&json),
-        ]);
-        assert!(run.status.success(), "{}", stderr(&run));
-        let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let report = estimate_report(dir.path(), &profile, recording);
         let rows = report["abnormality"].as_array().unwrap().clone();
         move |axis: &str| {
             let row = rows
@@ -805,19 +814,7 @@ fn estimate_says_where_the_spindle_elongation_counts_from() {
     rows_from(&shift, &mid_shift, 3600.0);
     let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
     let origin_of = |recording: &std::path::Path| {
-        let json = dir.path().join("report.json");
-        let out = servosight(&[
-            "estimate",
-            "--profile",
-            arg(&profile),
-            "--recording",
-            arg(recording),
-            "--json",
-            arg(&json),
-        ]);
-        assert!(out.status.success(), "{}", stderr(&out));
-        let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let report = estimate_report(dir.path(), &profile, recording);
         let origins = report["elongation_origins"].as_array().unwrap().clone();
         assert_eq!(origins.len(), 1, "{origins:?}");
         assert_eq!(origins[0]["axis"], "S");

@@ -130,7 +130,14 @@ impl<'a> Aligned<'a> {
         placed: bool,
     ) -> Option<Vec<Option<Reading>>> {
         let column = self.real.try_column(target)?;
+        let time = self.real.time();
+        let step = self.real_step_s()?;
         let whole = samples.fract() == 0.0;
+        // The instant a place (a sample and a fraction towards the next) stands for.
+        let instant = |(j, f): (usize, f64)| {
+            let next = time.get(j + 1).copied().unwrap_or(time[j]);
+            time[j] + f.clamp(0.0, 1.0) * (next - time[j])
+        };
         let at = |position: f64| -> Option<(usize, f64)> {
             let below = position.floor();
             let row = usize::try_from(below as i64).ok()?;
@@ -148,6 +155,15 @@ impl<'a> Aligned<'a> {
                 }
             })
             .collect();
+        // Across a gap in the recording (or where its clock jitters by half a sample) a reading
+        // so many samples later is not the delay later: not read.
+        for (reading, &from) in moved.iter_mut().zip(&self.real_index) {
+            if let Some(to) = *reading
+                && (instant(to) - instant(from) - samples * step).abs() > 0.5 * step
+            {
+                *reading = None;
+            }
+        }
         if placed && !whole {
             self.place_later(&mut moved, samples);
         }
@@ -183,15 +199,7 @@ impl<'a> Aligned<'a> {
             .real
             .names()
             .iter()
-            .filter(|name| {
-                matches!(
-                    Channel::parse(name),
-                    Channel::Servo {
-                        quantity: Quantity::Speed,
-                        ..
-                    }
-                )
-            })
+            .filter(|name| is_servo_speed(name))
             .filter_map(|name| {
                 let own = self.real.try_column(name)?;
                 let simulated = self.sim.try_column(name)?;
@@ -200,9 +208,8 @@ impl<'a> Aligned<'a> {
                 if !(range.is_finite() && range > 0.0) {
                     return None;
                 }
-                let earlier = (0..own.len())
-                    .map(|i| read_at_position(own, i as f64 - samples))
-                    .collect();
+                let step = self.real_step_s()?;
+                let earlier = series::shifted(self.real.time(), own, samples * step);
                 // The real speed's own noise: the simulation's samples, a coarse export's,
                 // differ from one to the next by what the speed did between them.
                 let noise = noise_while_moving(own);
@@ -214,16 +221,32 @@ impl<'a> Aligned<'a> {
                 ))
             })
             .collect();
-        let index: Index = moved.iter().map(|m| m.unwrap_or((0, 0.0))).collect();
+        // Agreement is judged on the rows with a reading alone.
+        let read: Index = moved.iter().flatten().copied().collect();
+        let agrees = |own: &[f64], at: &[f64], noise: f64, range: f64| {
+            let at = at
+                .iter()
+                .zip(moved.iter())
+                .filter(|(_, m)| m.is_some())
+                .map(|(a, _)| *a)
+                .collect();
+            GuidingSpeed {
+                own,
+                at,
+                noise,
+                range,
+            }
+            .agrees(&read)
+        };
         let speeds: Vec<GuidingSpeed<'_>> = guides
             .iter()
+            .filter(|(own, at, noise, range)| agrees(own, at, *noise, *range))
             .map(|(own, at, noise, range)| GuidingSpeed {
                 own,
                 at: at.clone(),
                 noise: *noise,
                 range: *range,
             })
-            .filter(|speed| speed.agrees(&index))
             .collect();
         if speeds.is_empty() {
             return;
@@ -351,16 +374,7 @@ impl<'a> Aligned<'a> {
             .then(|| inside(st))
             .filter(|time| time.len() >= MIN_ROWS);
         let on_simulation_grid = coarse.is_some();
-        let mut time = coarse.unwrap_or_else(|| inside(rt));
-        if read_later != 0.0 {
-            // A row's place may move by one where the speeds place it (`placed_by_speeds`):
-            // a sample of margin each side keeps every later reading inside the recording.
-            let later = read_later.floor() as i64;
-            time.retain(|&t| {
-                let row = rt.partition_point(|&r| r <= t).saturating_sub(1) as i64 + later;
-                row >= 1 && row + 2 < rt.len() as i64
-            });
-        }
+        let time = coarse.unwrap_or_else(|| inside(rt));
         if time.len() < MIN_ROWS {
             return Err(DiscrepancyError::TooShort {
                 rows: time.len(),
@@ -394,17 +408,28 @@ impl<'a> Aligned<'a> {
             target_read_later: read_later,
             recorded_target: None,
         };
-        aligned.real_target = aligned.real_column(target).unwrap_or_default();
         if read_later != 0.0 {
-            let later = aligned.real_target_later(target, read_later, true);
-            let recorded = std::mem::take(&mut aligned.real_target);
-            aligned.real_target = later
-                .unwrap_or_default()
-                .into_iter()
-                .zip(&recorded)
-                .map(|(later, recorded)| later.map_or(*recorded, |l| l.value))
-                .collect();
-            aligned.recorded_target = Some(recorded);
+            // Only the rows whose later reading the recording holds.
+            let later = aligned
+                .real_target_later(target, read_later, true)
+                .unwrap_or_default();
+            fn keep<T>(rows: &mut Vec<T>, later: &[Option<Reading>]) {
+                let mut read = later.iter();
+                rows.retain(|_| read.next().is_some_and(Option::is_some));
+            }
+            keep(&mut aligned.time, &later);
+            keep(&mut aligned.real_index, &later);
+            keep(&mut aligned.sim_index, &later);
+            if aligned.time.len() < MIN_ROWS {
+                return Err(DiscrepancyError::TooShort {
+                    rows: aligned.time.len(),
+                    needed: MIN_ROWS,
+                });
+            }
+            aligned.recorded_target = aligned.real_column(target);
+            aligned.real_target = later.into_iter().flatten().map(|r| r.value).collect();
+        } else {
+            aligned.real_target = aligned.real_column(target).unwrap_or_default();
         }
         aligned.sim_target = aligned.sim_column(target).unwrap_or_default();
         aligned.censoring = Censoring::detect(&aligned.real_target, &aligned.sim_target);
@@ -565,6 +590,13 @@ impl<'a> Aligned<'a> {
         } else {
             format!("read averaged ({}); {joined}", averaged.join(", "))
         };
+        let joined = match (self.target_read_later, self.real_step_s()) {
+            (later, Some(step)) if later != 0.0 => format!(
+                "{joined}; the real target was read {:.2} s later (a delay found on its own samples; the rows are those whose later readings the recording holds)",
+                later * step
+            ),
+            _ => joined,
+        };
         // An export of the target alone (as FEA tools write) does not say what room the
         // simulation assumed: the room's corrections then measure the real room from its mean,
         // and a temperature's excess from the real room, which the reader should know.
@@ -648,15 +680,7 @@ fn placed_by_speeds(
     let speeds: Vec<GuidingSpeed<'_>> = source
         .names()
         .iter()
-        .filter(|name| {
-            matches!(
-                Channel::parse(name),
-                Channel::Servo {
-                    quantity: Quantity::Speed,
-                    ..
-                }
-            )
-        })
+        .filter(|name| is_servo_speed(name))
         .filter_map(|name| {
             let own = source.try_column(name)?;
             let others = other.try_column(name)?;
@@ -874,6 +898,17 @@ enum Sides {
     Extended,
 }
 
+/// Whether a column is a servo axis's speed (one that may place instants).
+fn is_servo_speed(name: &str) -> bool {
+    matches!(
+        Channel::parse(name),
+        Channel::Servo {
+            quantity: Quantity::Speed,
+            ..
+        }
+    )
+}
+
 /// A speed's white noise (σ) from its sample-to-sample differences while it moves (both
 /// samples off zero): a drive that reports exactly 0 at rest would otherwise, resting more
 /// than half the time, read as noiseless. All differences where it hardly moves; 0 for a
@@ -889,21 +924,6 @@ fn noise_while_moving(values: &[f64]) -> f64 {
     } else {
         white_noise_of_steps(values.windows(2).map(|w| w[1] - w[0]).collect())
     }
-}
-
-/// `values` read at a position in samples (on the line between the two around it), the
-/// first or last sample beyond the ends.
-fn read_at_position(values: &[f64], position: f64) -> f64 {
-    let last = values.len().saturating_sub(1);
-    if position <= 0.0 || last == 0 {
-        return values.first().copied().unwrap_or(f64::NAN);
-    }
-    let below = position.floor() as usize;
-    if below >= last {
-        return values[last];
-    }
-    let fraction = position - below as f64;
-    values[below] + fraction * (values[below + 1] - values[below])
 }
 
 /// `column` read at `index` by linear interpolation. A fraction outside [0, 1] (an instant
@@ -1018,9 +1038,29 @@ pub(crate) mod tests {
         );
 
         let read = Aligned::read_later(&sim_long, &real, "X.torque_Nm", 3.0).expect("aligned");
-        // Only the rows whose later samples (and one each side) the recording holds.
+        // Only the rows whose later samples the recording holds.
         assert_eq!(read.time.first(), Some(&0.0));
-        assert_eq!(read.time.last(), Some(&390.0));
+        assert_eq!(read.time.last(), Some(&395.0));
+        assert_eq!(read.len(), 80);
+        let earlier = Aligned::read_later(&sim_long, &real, "X.torque_Nm", -7.5).expect("aligned");
+        assert_eq!(earlier.time.first(), Some(&10.0));
+        assert_eq!(earlier.real_target[0], (2.0 * 2.0 + 3.0 * 3.0) / 8.0);
+        assert_eq!(earlier.recorded_target.as_ref().map(|r| r[0]), Some(25.0));
+        // Across a gap in the recording, so many samples later is not so much later.
+        let mut gapped = Recording::new("real", header()).expect("a valid header");
+        for i in (0..400).filter(|i| !(200..210).contains(i)) {
+            let t = i as f64;
+            gapped.push_row(&[t, t * t / 4.0]).expect("a valid row");
+        }
+        let aligned = Aligned::new(&sim_long, &gapped, "X.torque_Nm").expect("aligned");
+        let later = aligned
+            .real_target_later("X.torque_Nm", 3.0, true)
+            .expect("the target");
+        let at = |t: f64| aligned.time.iter().position(|&r| r == t).expect("a row");
+        assert_eq!(later[at(200.0)], None);
+        assert_eq!(later[at(205.0)], None);
+        assert_eq!(later[at(195.0)].map(|r| r.value), Some(198.0 * 198.0 / 4.0));
+        assert_eq!(later[at(210.0)].map(|r| r.value), Some(213.0 * 213.0 / 4.0));
         assert_eq!(read.real_target[1], 8.0 * 8.0 / 4.0);
         assert_eq!(
             read.recorded_target.as_ref().map(|r| r[1]),

@@ -1002,15 +1002,12 @@ impl Context {
     fn delay_grid(&self) -> Vec<f64> {
         let high = (0.1 * self.duration_s).min(600.0);
         let mut grid = Vec::new();
-        let mut samples = 1.0_f64;
-        while samples * self.step_s <= high {
+        for samples in series::delay_samples().map(|s| s as f64) {
+            if samples * self.step_s > high {
+                break;
+            }
             grid.push(samples * self.step_s);
             grid.push(-samples * self.step_s);
-            samples = if samples < 60.0 {
-                samples + 1.0
-            } else {
-                (samples * 1.1).round()
-            };
         }
         if let Some(own) = &self.simulated_samples {
             // The simulation's step is at least the rows' (Aligned::simulated_samples), so

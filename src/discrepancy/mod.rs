@@ -652,7 +652,7 @@ fn analyse_with(
     options: &Options,
     watch: &Watch<'_>,
     winding_cause: Option<Arc<WindingCause>>,
-    read_later: Option<RealDelay>,
+    read_later: Option<ReadLater>,
 ) -> Result<DiscrepancyReport, DiscrepancyError> {
     options.validate()?;
     for (role, recording) in [("simulation", sim), ("real recording", real)] {
@@ -667,23 +667,39 @@ fn analyse_with(
     }
     watch.report(0.0, || "aligning the recordings".into())?;
     let aligned = match read_later {
-        Some(delay) => Aligned::read_later(sim, real, target, delay.samples)?,
+        Some(later) => Aligned::read_later(sim, real, target, later.delay.samples)?,
         None => Aligned::new(sim, real, target)?,
     };
     let n = aligned.len();
     let mut ctx = Context::new(&aligned, target);
     // A simulation exported too coarsely to be moved is compared with the real target read
     // later, when that predicts the held-out blocks better: the rest of the analysis then
-    // works on what the delay leaves.
-    if read_later.is_none() && ctx.too_coarse.is_some() {
+    // works on what the delay leaves. Where the delay, so read, adds nothing to the refitted
+    // model, or too few rows hold its later readings, the target is compared as recorded and
+    // the report says why the delay is not named.
+    let mut delay_refused = None;
+    if let Some(later) = read_later {
+        // The same export: the rows that hold later readings are no finer for it.
+        ctx.too_coarse = ctx.too_coarse.or(Some(later.too_coarse));
+    } else if let Some(too_coarse) = ctx.too_coarse {
         watch.report(0.0, || "reading the real recording later".into())?;
         if let Some(delay) = real_delay::search(&aligned, target, options) {
+            let later = Some(ReadLater { delay, too_coarse });
             let cause = winding_cause.clone();
-            match analyse_with(sim, real, target, options, watch, cause, Some(delay)) {
-                // Too few rows hold the later readings: compared as recorded.
-                Err(DiscrepancyError::TooShort { .. }) => {}
-                done => return done,
-            }
+            delay_refused = Some(
+                match analyse_with(sim, real, target, options, watch, cause, later) {
+                    Ok(report) if reads_later_with_gain(&report) => return Ok(report),
+                    Ok(_) => format!(
+                        "the real {target} read {:.2} s later predicted the held-out blocks better alone, but added nothing to the corrections refitted beside it",
+                        delay.delay_s
+                    ),
+                    Err(DiscrepancyError::TooShort { rows, .. }) => format!(
+                        "the real {target} read {:.2} s later predicted the held-out blocks better, but only {rows} rows hold its later readings",
+                        delay.delay_s
+                    ),
+                    Err(e) => return Err(e),
+                },
+            );
         }
     }
     if let Some(cause) = winding_cause {
@@ -1032,7 +1048,7 @@ fn analyse_with(
             }
         }
     }
-    if let Some(delay) = read_later {
+    if let Some(ReadLater { delay, .. }) = read_later {
         // Its share: the joint model refitted to the target as recorded loses it.
         let without_delay = held_out_quality(&design, &recorded_residual, &full_blocks, ss_total);
         findings.push(real_delay_finding(
@@ -1141,6 +1157,10 @@ fn analyse_with(
             reason,
         })
         .collect();
+    not_tested.extend(delay_refused.map(|reason| NotTested {
+        physics: Physics::SignalDelay.id().to_string(),
+        reason,
+    }));
     not_tested.dedup();
     Ok(DiscrepancyReport {
         target: target.to_string(),
@@ -1169,6 +1189,7 @@ fn analyse_with(
             start_s: ctx.time.first().copied().unwrap_or(0.0),
             end_s: ctx.time.last().copied().unwrap_or(0.0),
             censoring: aligned.censoring,
+            read_later_s: read_later.map(|later| later.delay.delay_s),
         },
         not_tested,
         method: Method {
@@ -1179,7 +1200,7 @@ fn analyse_with(
             candidates: members.len(),
             steps: read_later
                 .iter()
-                .map(|delay| report::StepTrace {
+                .map(|ReadLater { delay, .. }| report::StepTrace {
                     physics: Physics::SignalDelay.id().to_string(),
                     relative_gain: delay.relative_gain,
                     p_value: delay.p_value,
@@ -1215,6 +1236,28 @@ fn analyse_with(
     })
 }
 
+/// A delay found on the real recording's own samples, and the export that made it the way to
+/// look for one.
+#[derive(Debug, Clone, Copy)]
+struct ReadLater {
+    delay: RealDelay,
+    too_coarse: library::TooCoarse,
+}
+
+/// Whether `report`, analysed with its real target read later, names that delay as adding to
+/// the refitted model (held out).
+fn reads_later_with_gain(report: &DiscrepancyReport) -> bool {
+    report.alignment.read_later_s.is_some()
+        && report.findings.iter().any(|f| {
+            f.physics == Physics::SignalDelay.id()
+                && f.parameters.contains_key(READ_LATER_RESOLUTION)
+                && f.delta_r2 > 0.0
+        })
+}
+
+/// The parameter that marks a delay read on the real recording's samples: their step, s.
+const READ_LATER_RESOLUTION: &str = "resolution_s";
+
 /// The finding of a delay read from the real recording's own samples ([`real_delay`]), with
 /// `delta_r2` its share in the joint model and `real_step_s` the samples' step.
 fn real_delay_finding(target: &str, delay: &RealDelay, delta_r2: f64, real_step_s: f64) -> Finding {
@@ -1236,7 +1279,7 @@ fn real_delay_finding(target: &str, delay: &RealDelay, delta_r2: f64, real_step_
         parameters: BTreeMap::from([
             ("delay_s".to_string(), d),
             ("share".to_string(), 1.0),
-            ("resolution_s".to_string(), real_step_s),
+            (READ_LATER_RESOLUTION.to_string(), real_step_s),
         ]),
         signals: vec![target.to_string()],
         delta_r2,

@@ -9,21 +9,18 @@
 //! holds at `t`. So each delay is tried by comparing the real target `d` later with the
 //! simulation at its own instants. The comparison's coefficient is fixed at one (the later
 //! reading is the simulated value, nothing scaled): a fitted coefficient on the real target's
-//! own changes would let its noise fit itself, a fixed one cannot gain from noise, and a
-//! simulation that is not late only loses by it (its changes then land at the wrong
-//! instants).
+//! own changes would let its noise fit itself, a fixed one cannot gain from noise, and where
+//! the simulation's changes are the target's own and on time, reading the target later only
+//! moves them to the wrong instants. What it is not weighed against is another physics that
+//! also makes the measurement trail (a sensor's first-order filter of a second or more would
+//! read as a transport delay of about that length); a delay of less than one sample of the
+//! real recording is not looked for.
 
 use super::Options;
 use super::align::Aligned;
 use super::cv::Blocks;
-use crate::fit::autocorrelation::white_noise_from_differences;
-use crate::fit::distributions::student_t_two_sided_p;
+use crate::fit::autocorrelation::{mean_above_zero, white_noise_from_differences};
 use crate::parallel::parallel_map;
-
-/// Delays tried in every sample of the real recording, each way; beyond, the steps grow by
-/// a tenth and the best is refined to the sample between its neighbours (as
-/// [`super::library`]'s delay grid).
-const EVERY_SAMPLE_UP_TO: isize = 60;
 
 /// The longest delay tried: a tenth of the recording, at most this, s (as the simulation's
 /// own delays).
@@ -44,7 +41,8 @@ pub struct RealDelay {
     /// error at no delay.
     pub relative_gain: f64,
     /// One-sided p-value of the paired comparison of the held-out blocks' errors with and
-    /// without the delay.
+    /// without the delay (over the blocks' effective number, as neighbouring blocks share
+    /// correlated noise).
     pub p_value: f64,
 }
 
@@ -190,19 +188,13 @@ impl Tried<'_> {
     }
 }
 
-/// The delays tried, in order: every sample up to [`EVERY_SAMPLE_UP_TO`] each way, then
-/// growing by a tenth up to `reach` samples.
+/// The delays tried, in order: [`super::series::delay_samples`] up to `reach` samples, each
+/// way, and none.
 fn delay_grid(reach: isize) -> Vec<isize> {
-    let mut ahead = Vec::new();
-    let mut samples: isize = 1;
-    while samples <= reach {
-        ahead.push(samples);
-        samples = if samples < EVERY_SAMPLE_UP_TO {
-            samples + 1
-        } else {
-            ((samples as f64) * 1.1).round() as isize
-        };
-    }
+    let ahead: Vec<isize> = super::series::delay_samples()
+        .map(|s| s as isize)
+        .take_while(|&s| s <= reach)
+        .collect();
     let mut grid: Vec<isize> = ahead.iter().rev().map(|s| -s).collect();
     grid.push(0);
     grid.extend(ahead);
@@ -255,7 +247,8 @@ pub fn search(aligned: &Aligned<'_>, target: &str, options: &Options) -> Option<
             let later = tried.get(chosen).block_error(b, chosen_offset);
             let recorded = tried.get(0).block_error(b, none_offset);
             if let (Some(later), Some(recorded)) = (later, recorded) {
-                let rows = blocks.ranges[b].len() as f64;
+                // Both weighed by the rows the later reading compares.
+                let rows = tried.get(chosen).count[b];
                 with.push(later * rows);
                 without.push(recorded * rows);
             }
@@ -274,31 +267,19 @@ pub fn search(aligned: &Aligned<'_>, target: &str, options: &Options) -> Option<
     })
 }
 
-/// One-sided p-value that `before` exceeds `after`, paired (Student's t over the pairs).
+/// One-sided p-value that `before` exceeds `after`, paired: Student's t of the differences
+/// over their effective number ([`mean_above_zero`]); 0 for differences all equal and
+/// positive, 1 where there are too few to tell.
 fn one_sided_paired_p(before: &[f64], after: &[f64]) -> f64 {
     let d: Vec<f64> = before.iter().zip(after).map(|(b, a)| b - a).collect();
     if d.len() < 2 {
         return 1.0;
     }
-    let n = d.len() as f64;
-    let m = d.iter().sum::<f64>() / n;
-    let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-    let t = if var > 0.0 {
-        m / (var / n).sqrt()
-    } else if m > 0.0 {
-        f64::INFINITY
-    } else {
-        return 1.0;
-    };
-    let two_sided = student_t_two_sided_p(t, n - 1.0);
-    if !two_sided.is_finite() {
-        return 1.0;
+    if d.windows(2).all(|w| w[0] == w[1]) {
+        return if d[0] > 0.0 { 0.0 } else { 1.0 };
     }
-    if t > 0.0 {
-        two_sided / 2.0
-    } else {
-        1.0 - two_sided / 2.0
-    }
+    let p = mean_above_zero(&d).p_value;
+    if p.is_finite() { p } else { 1.0 }
 }
 
 #[cfg(test)]
@@ -312,9 +293,9 @@ mod tests {
     /// An hour of a feed axis on a 0.5 s grid: reversals every 3–8 s at 100–400 rpm, a cut's
     /// load changing every 30–120 s; the torque is Coulomb + viscous + load. The simulation
     /// (noise-free) every 5 s; the real recording every second, its torque `shift` grid steps
-    /// late with 0.02 N·m of white noise and, `correlated`, as much again correlated over
-    /// five minutes.
-    fn axis_pair(seed: u64, shift: usize, correlated: bool) -> (Recording, Recording) {
+    /// late (early when negative) with 0.02 N·m of white noise and, `correlated`, as much
+    /// again correlated over five minutes.
+    fn axis_pair(seed: u64, shift: i64, correlated: bool) -> (Recording, Recording) {
         let mut rng = StdRng::seed_from_u64(seed);
         let noise = Normal::new(0.0, 0.02).expect("a positive σ");
         let steps = 7200;
@@ -356,7 +337,8 @@ mod tests {
                 if correlated {
                     slow = keep * slow + (1.0 - keep * keep).sqrt() * noise.sample(&mut rng);
                 }
-                let late = torque[k.saturating_sub(shift)] + slow;
+                let at = (k as i64 - shift).clamp(0, steps as i64 - 1) as usize;
+                let late = torque[at] + slow;
                 real.push_row(&[t, speed[k], late + noise.sample(&mut rng)])
                     .expect("a valid row");
             }
@@ -367,13 +349,13 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// On a torque the simulation's 5 s export cannot hold, a delay of one real sample or
-        /// more, whole or not (1–20 s), is found within half a sample, and none is found where
-        /// there is none, under white noise or correlated. (Less than a sample is not looked for: whether there is a delay is
+        /// more, whole or not (1–20 s, the measurement late or early), is found within half a
+        /// sample, and none is found where there is none, under white noise or correlated. (Less than a sample is not looked for: whether there is a delay is
         /// decided on whole samples.)
         #[test]
         fn a_delay_is_found_where_there_is_one_and_only_there(
             seed in 0_u64..1_000_000,
-            shift in prop::sample::select(vec![0_usize, 0, 0, 2, 3, 7, 15, 30, 40]),
+            shift in prop::sample::select(vec![0_i64, 0, 0, 0, 2, 3, 7, 15, 40, -2, -9, -30]),
             correlated in any::<bool>(),
         ) {
             let (sim, real) = axis_pair(seed, shift, correlated);

@@ -160,6 +160,10 @@ pub struct Alignment {
     /// The real target's floor (a magnitude that cannot read below zero) and the noise cut off
     /// there; when present the simulation was compared as the instrument would read it.
     pub censoring: Option<super::censor::Censoring>,
+    /// When a delay was found on the real recording's own samples (a simulation exported too
+    /// coarsely to be moved): how much later the real target was read, s. The rows are then
+    /// those whose later readings the recording holds.
+    pub read_later_s: Option<f64>,
 }
 
 /// A physics that could not be tried, and why.
@@ -197,7 +201,8 @@ pub struct StepTrace {
     pub relative_gain: f64,
     /// Its surrogate p-value.
     pub p_value: f64,
-    /// Its upper-tail probability under a Gumbel law fitted to the surrogates' maxima.
+    /// Its upper-tail probability under a Gumbel law fitted to the surrogates' maxima (for a
+    /// delay read on the real recording's samples, which has no surrogates, its `p_value`).
     pub tail_p: f64,
     /// Whether it entered the model.
     pub accepted: bool,

@@ -328,6 +328,18 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     total
 }
 
+/// The delays worth trying, in samples, growing: every sample up to sixty (a delay that
+/// misses by a sample smears a fast signal badly), then by a tenth (rounded to whole samples).
+pub fn delay_samples() -> impl Iterator<Item = u64> {
+    std::iter::successors(Some(1_u64), |&s| {
+        Some(if s < 60 {
+            s + 1
+        } else {
+            ((s as f64) * 1.1).round() as u64
+        })
+    })
+}
+
 /// `values` as they were `seconds` earlier (negative: later), linearly interpolated; before the
 /// first sample (after the last) the first (last) value is held.
 pub fn shifted(time: &[f64], values: &[f64], seconds: f64) -> Vec<f64> {

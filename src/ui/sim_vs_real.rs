@@ -388,6 +388,7 @@ mod tests {
                 start_s: 0.0,
                 end_s: 999.0,
                 censoring: None,
+                read_later_s: None,
             },
             not_tested: Vec::new(),
             method: crate::discrepancy::Method {
