@@ -1196,7 +1196,7 @@ fn clean_delay_limit() -> GainLimit {
 /// of a whole shift; outside [`clean_delay_limit`] it says it is no clean transport delay
 /// (the selection held the share within it on bin means; the final fit on all rows may
 /// still move it out).
-fn delay_sentence(target: &str, delay_s: f64, share: f64) -> String {
+pub(super) fn delay_sentence(target: &str, delay_s: f64, share: f64) -> String {
     let how = if clean_delay_limit().admits(share) {
         format!("transport delay; share {share:.2}")
     } else {

@@ -1262,17 +1262,11 @@ const READ_LATER_RESOLUTION: &str = "resolution_s";
 /// `delta_r2` its share in the joint model and `real_step_s` the samples' step.
 fn real_delay_finding(target: &str, delay: &RealDelay, delta_r2: f64, real_step_s: f64) -> Finding {
     let d = delay.delay_s;
-    let how = format!(
-        "read on the real recording's own samples, every {real_step_s:.3} s, as the simulation's export is too coarse to be moved; transport delay, the simulated value itself, not scaled"
+    // The simulated value itself, not scaled: a share of one.
+    let explanation = format!(
+        "{}, read on the real recording's own samples every {real_step_s:.3} s (the simulation's export is too coarse to be moved)",
+        library::delay_sentence(target, d, 1.0)
     );
-    let explanation = if d >= 0.0 {
-        format!("the measured {target} trails the simulated one by {d:.1} s ({how})")
-    } else {
-        format!(
-            "the measured {target} runs {:.1} s ahead of the simulated one (the simulation is late; {how})",
-            -d
-        )
-    };
     Finding {
         physics: Physics::SignalDelay.id().to_string(),
         explanation,
