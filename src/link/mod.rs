@@ -329,6 +329,29 @@ pub struct ControllerLink {
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
+/// The next command for a paced source, or `None` once its pending frame is `due` (`Some(None)`:
+/// the handle is gone; with no `due`, it waits for a command alone). A frame already due is
+/// sent without waiting on the timer, whose millisecond tick held an as-fast-as-possible replay
+/// to about a thousand frames a second.
+async fn command_or_due(
+    commands: &mut mpsc::Receiver<LinkCommand>,
+    due: Option<tokio::time::Instant>,
+) -> Option<Option<LinkCommand>> {
+    match due {
+        Some(at) if at <= tokio::time::Instant::now() => match commands.try_recv() {
+            Ok(command) => Some(Some(command)),
+            Err(mpsc::error::TryRecvError::Empty) => None,
+            Err(mpsc::error::TryRecvError::Disconnected) => Some(None),
+        },
+        Some(at) => tokio::select! {
+            biased;
+            command = commands.recv() => Some(command),
+            _ = tokio::time::sleep_until(at) => None,
+        },
+        None => Some(commands.recv().await),
+    }
+}
+
 /// What a source task gets to talk to the handle.
 struct SourceEnds {
     frames: mpsc::Sender<Frame>,

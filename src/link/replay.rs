@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 
-use super::{ControllerLink, Frame, LinkCommand, LinkError, SourceEnds};
+use super::{ControllerLink, Frame, LinkCommand, LinkError, SourceEnds, command_or_due};
 use crate::signal::RecordingReader;
 
 /// How fast a replay runs.
@@ -110,16 +110,7 @@ async fn run_replay(
                 Some(clock.wall_origin + Duration::from_secs_f64(offset_s))
             }
         };
-        let command = match due {
-            Some(at) => {
-                tokio::select! {
-                    biased;
-                    command = ends.commands.recv() => Some(command),
-                    _ = tokio::time::sleep_until(at) => None,
-                }
-            }
-            None => Some(ends.commands.recv().await),
-        };
+        let command = command_or_due(&mut ends.commands, due).await;
         match command {
             // The handle is gone.
             Some(None) => return,

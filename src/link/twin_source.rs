@@ -9,7 +9,10 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 
-use super::{ControllerLink, Frame, LinkCommand, LinkError, ReplaySpeed, SourceEnds, WriteOutcome};
+use super::{
+    ControllerLink, Frame, LinkCommand, LinkError, ReplaySpeed, SourceEnds, WriteOutcome,
+    command_or_due,
+};
 use crate::compensation::{CompensationId, CompensationValues};
 use crate::link::register_map::{self as map, CommitStatus};
 use crate::signal::AxisId;
@@ -74,14 +77,7 @@ async fn run_twin(
                 Some(wall0 + Duration::from_secs_f64(offset))
             }
         };
-        let command = match due {
-            Some(at) => tokio::select! {
-                biased;
-                command = ends.commands.recv() => Some(command),
-                _ = tokio::time::sleep_until(at) => None,
-            },
-            None => Some(ends.commands.recv().await),
-        };
+        let command = command_or_due(&mut ends.commands, due).await;
         match command {
             Some(None) => return,
             Some(Some(LinkCommand::Pause(p))) => {
