@@ -28,6 +28,7 @@ use crate::signal::channel::{AMBIENT, CUT_DEPTH};
 use crate::signal::{AxisId, Quantity, Recording, axis_column};
 
 use super::models::{AbnormalityModel, BoundModel, IDEAL_TORQUE_FEATURES};
+use super::state::{StateWalk, WalkState};
 
 /// Length of the blocks frames are averaged into before scoring, s.
 pub const BLOCK_S: f64 = 1.0;
@@ -384,6 +385,26 @@ impl MotorAbnormalityEstimator {
     /// The score so far.
     pub fn score(&self) -> AbnormalityScore {
         self.score
+    }
+}
+
+impl WalkState for MotorAbnormalityEstimator {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        walk.value(&mut self.excess);
+        walk.value(&mut self.ideal_sum);
+        walk.value(&mut self.weight);
+        walk.value(&mut self.weight_sq);
+        let score = &mut self.score;
+        walk.value(&mut score.excess_pct);
+        walk.value(&mut score.excess_Nm);
+        walk.value(&mut score.ideal_Nm);
+        walk.value(&mut score.standard_error_pct);
+        walk.count(&mut score.steady_blocks);
+        if walk.is_restoring() {
+            // A block is steady only beside its neighbours; none spans a break in the frames.
+            self.averager = BlockAverager::default();
+            self.gate = SteadyBlockGate::default();
+        }
     }
 }
 

@@ -9,6 +9,7 @@
 //! - [`fingerprint`]: friction fingerprint, its trend, and the preload diagnosis.
 //! - [`depth_of_cut`]: the maximum rough-cut depth and the component that limits it.
 //! - [`accuracy`]: runs the pipeline over a recording and scores it against reference columns.
+//! - [`state`]: the estimators' state saved by one HMI session and taken up by the next.
 
 pub mod abnormality;
 pub mod accuracy;
@@ -18,6 +19,7 @@ pub mod depth_of_cut;
 pub mod fingerprint;
 pub mod models;
 pub mod pipeline;
+pub mod state;
 pub mod streaming;
 
 pub use pipeline::{EstimatorPipeline, PipelineError};

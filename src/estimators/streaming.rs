@@ -10,6 +10,7 @@ use super::models::{
     FAST_HEAT_DIVISOR, FLANGE_FEATURES, HEAT_FEATURES, HeatModel, LaneModels, LinearModel,
     PART_ACCUMULATIONS, RATIO_FEATURES, STRAIGHTNESS_FEATURES, WarmStart,
 };
+use super::state::{StateWalk, WalkState};
 
 /// rpm → rad/s.
 const RPM_TO_RAD_PER_S: f64 = std::f64::consts::PI / 30.0;
@@ -841,6 +842,65 @@ impl SpindleElongationEstimator {
             self.elongation_at_calibration = Some(value);
         }
         value - self.elongation_at_calibration.unwrap_or(f64::NAN)
+    }
+}
+
+impl WalkState for HeatAccumulator {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        // The cached factor belongs to τ and the step, not to the state.
+        walk.value(&mut self.value);
+    }
+}
+
+impl<const N: usize> WalkState for SettledLags<N> {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        self.lags.walk_state(walk);
+        walk.flag(&mut self.started);
+    }
+}
+
+impl WalkState for RoomLags {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        self.lags.walk_state(walk);
+    }
+}
+
+impl WalkState for BedLags {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        self.motor.walk_state(walk);
+        self.back.walk_state(walk);
+    }
+}
+
+impl WalkState for ComponentThermalEstimator {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        self.heat.walk_state(walk);
+        self.load_heat.walk_state(walk);
+        self.churning_heat.walk_state(walk);
+        self.fast_heat.walk_state(walk);
+        // Restored as started, a part is never seeded again from the warm start.
+        walk.flag(&mut self.started);
+    }
+}
+
+impl WalkState for ElongationFeatures {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        self.heat.walk_state(walk);
+        walk.optional(&mut self.stator_at_calibration);
+        let mut room = self.room_at_calibration.map(|(room, _)| room);
+        let mut lags = self
+            .room_at_calibration
+            .map_or([f64::NAN; 3], |(_, lags)| lags);
+        walk.optional(&mut room);
+        walk.values(&mut lags);
+        self.room_at_calibration = room.map(|room| (room, lags));
+    }
+}
+
+impl WalkState for SpindleElongationEstimator {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        self.features.walk_state(walk);
+        walk.optional(&mut self.elongation_at_calibration);
     }
 }
 
