@@ -483,3 +483,178 @@ fn the_hmi_session_says_where_the_spindle_elongation_counts_from() {
     assert!(measured.time_s() > 0.0, "{measured:?}");
     assert!(measured.is_known());
 }
+
+/// Rows `rows` of `recording` written as a CSV v1 file.
+fn write_rows(
+    path: &Path,
+    recording: &servosight::signal::Recording,
+    rows: std::ops::Range<usize>,
+) {
+    let mut writer = servosight::signal::csv_format::RecordingWriter::create(
+        path,
+        recording.metadata(),
+        recording.schema(),
+    )
+    .unwrap();
+    let mut row = Vec::new();
+    for i in rows {
+        recording.row_into(i, &mut row);
+        writer.write_row(&row).unwrap();
+    }
+    writer.finish().unwrap();
+}
+
+/// The last frame a session forwards once its source has given `time_s`, with every event it
+/// said until then.
+fn run_until(session: &mut servosight::ui::Session, time_s: f64) -> (Vec<f64>, Vec<String>) {
+    use servosight::ui::session::SessionUpdate;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let (mut last, mut events) = (Vec::new(), Vec::new());
+    while Instant::now() < deadline {
+        while let Some(update) = session.try_recv() {
+            match update {
+                SessionUpdate::Frames(batch) => {
+                    if let Some(row) = batch.rows.last() {
+                        last.clone_from(row);
+                    }
+                }
+                SessionUpdate::Event(event) => events.push(format!("{event:?}")),
+                _ => {}
+            }
+        }
+        if last.first() == Some(&time_s) {
+            return (last, events);
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    panic!("the session did not reach {time_s} s; it said {events:?}");
+}
+
+/// An HMI closed after an hour of a shift and opened again two minutes later carries its
+/// estimators on from the state the first session saved as it closed: the estimates at the end
+/// of the second hour are exactly those of estimators that ran through both hours with the
+/// break (the break's inputs held at the first frame after it), the spindle's elongation still
+/// counting from the first session's start at rest. The same state is not taken up by a
+/// session whose machine clock starts again from zero (a controller restarted), which says so.
+#[test]
+fn a_restarted_hmi_session_carries_its_estimators_on_from_where_the_last_one_left_them() {
+    use servosight::estimators::EstimatorPipeline;
+    use servosight::ui::SourceSpec;
+    use servosight::ui::session::estimator_state_path;
+    let dir = tempfile::tempdir().unwrap();
+    let mut config =
+        servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, Some(2.0), 4);
+    config.rate_hz = 1.0;
+    let recording = servosight::sim::simulate(config).unwrap();
+    let (closed_at, opened_at, end) = (3600, 3720, recording.len());
+    let (first, second) = (dir.path().join("first.csv"), dir.path().join("second.csv"));
+    write_rows(&first, &recording, 0..closed_at);
+    write_rows(&second, &recording, opened_at..end);
+    let replay = |path: &Path| SourceSpec::Replay {
+        path: path.to_path_buf(),
+        options: ReplayOptions {
+            speed: ReplaySpeed::AsFastAsPossible,
+            ..ReplayOptions::default()
+        },
+    };
+    let time = |i: usize| {
+        let mut row = Vec::new();
+        recording.row_into(i, &mut row);
+        row[0]
+    };
+
+    let mut session = twin_profile_session(dir.path(), replay(&first));
+    run_until(&mut session, time(closed_at - 1));
+    drop(session);
+    let saved = estimator_state_path(&dir.path().join("data"), &replay(&first));
+    let state = std::fs::read_to_string(&saved).expect("the closing session saved its state");
+
+    let mut session = twin_profile_session(dir.path(), replay(&second));
+    let (last, events) = run_until(&mut session, time(end - 1));
+    let carried = "carried on from the state the last session saved, 121 s before";
+    assert!(events.iter().any(|e| e.contains(carried)), "{events:?}");
+    let mut through = EstimatorPipeline::new(&twin_profile(), recording.schema()).unwrap();
+    let mut row = Vec::new();
+    for i in (0..closed_at).chain(opened_at..end) {
+        recording.row_into(i, &mut row);
+        through.update(&row);
+    }
+    let mut expected = Vec::new();
+    through.write_outputs(&mut expected);
+    let estimates = &last[recording.schema().len()..];
+    assert_eq!(estimates.len(), expected.len());
+    for (got, want) in estimates.iter().zip(&expected) {
+        assert!(
+            got == want || (got.is_nan() && want.is_nan()),
+            "{estimates:?} against {expected:?}"
+        );
+    }
+    drop(session);
+
+    // The second hour on a clock that starts again at zero, as a live link's does: the wall
+    // clock says how long ago the state's last frame was, and the state's times move onto the
+    // new clock (the elongation counted from the first hour's start, ~3600 s before this one).
+    let restarted = dir.path().join("restarted.csv");
+    let mut writer = servosight::signal::csv_format::RecordingWriter::create(
+        &restarted,
+        recording.metadata(),
+        recording.schema(),
+    )
+    .unwrap();
+    let mut row = Vec::new();
+    for i in closed_at..closed_at + 60 {
+        recording.row_into(i, &mut row);
+        row[0] -= time(closed_at);
+        writer.write_row(&row).unwrap();
+    }
+    writer.finish().unwrap();
+    std::fs::write(&saved, &state).unwrap();
+    let mut session = twin_profile_session(dir.path(), replay(&restarted));
+    let (_, events) = run_until(&mut session, 59.0);
+    assert!(
+        events
+            .iter()
+            .any(|e| e.contains("carried on from the state the last session saved")),
+        "{events:?}"
+    );
+    let origin = origin_of_spindle(&mut session);
+    assert!(
+        (-3700.0..-3599.0).contains(&origin.time_s()),
+        "counted from the first hour's start: {origin:?}"
+    );
+    drop(session);
+
+    // The first hour replayed again: its clock started again, and the spindle it starts on is
+    // cold where the state left it warm.
+    std::fs::write(&saved, &state).unwrap();
+    let mut session = twin_profile_session(dir.path(), replay(&first));
+    let (_, events) = run_until(&mut session, time(closed_at - 1));
+    assert!(
+        events
+            .iter()
+            .any(|e| e.contains("started afresh") && e.contains("not where the state left it")),
+        "{events:?}"
+    );
+}
+
+/// The newest place the session says the S spindle's elongation counts from.
+fn origin_of_spindle(
+    session: &mut servosight::ui::Session,
+) -> servosight::estimators::pipeline::ElongationOrigin {
+    use servosight::ui::session::SessionUpdate;
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let mut newest = None;
+    while Instant::now() < deadline && newest.is_none() {
+        while let Some(update) = session.try_recv() {
+            if let SessionUpdate::ElongationOrigins(origins) = update {
+                newest = origins
+                    .iter()
+                    .find(|(axis, _)| *axis == AxisId::S)
+                    .and_then(|(_, o)| *o)
+                    .or(newest);
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    newest.expect("the session says where the elongation counts from")
+}

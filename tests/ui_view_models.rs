@@ -947,6 +947,25 @@ fn a_thermal_offset_is_proposed_only_from_a_known_tool_length() {
             Some(servosight::ui::vm::number(origin.map(|o| o.time_s()), 1))
         );
     }
+    // A tool measured in the last session, whose state this one carried on from: usable, and
+    // the basis says the time is before this session's clock.
+    let mut carried = warmup_state("pass");
+    carried.elongation_origins.insert(
+        AxisId::S,
+        Some(ElongationOrigin::ToolMeasured {
+            time_s: -2400.0,
+            started_warm_K: None,
+        }),
+    );
+    let offset = &vm::compensation::build(&carried).proposals[0];
+    assert_eq!(offset.blocked, None);
+    assert!(
+        offset.basis.contains(
+            "at machine time -2400.0 s (before this session's clock started: carried over from the last session)"
+        ),
+        "{}",
+        offset.basis
+    );
     // The same estimate on a session that started warm: listed with its reason, never usable.
     let mut warm = warmup_state("warn");
     warm.elongation_origins.insert(

@@ -25,6 +25,7 @@ use crate::compensation::{
 use crate::estimators::EstimatorPipeline;
 use crate::estimators::fingerprint::FrictionFingerprint;
 use crate::estimators::pipeline::ElongationOrigin;
+use crate::estimators::state::{Resume, SavedState, unix_now_s};
 use crate::link::{
     ConnectionState, ControllerLink, LinkError, ModbusConfig, Recorder, RecorderConfig,
     ReplayOptions, ReplaySpeed,
@@ -85,6 +86,22 @@ pub fn baseline_path(data_dir: &std::path::Path, axis: AxisId) -> PathBuf {
         .join("baselines")
         .join(format!("{axis}-fingerprint.json"))
 }
+
+/// The file the estimators' state is kept in between sessions on this kind of source
+/// ([`crate::estimators::state`]): one per kind, so a session on the embedded twin does not
+/// overwrite what a session on the machine left.
+pub fn estimator_state_path(data_dir: &std::path::Path, source: &SourceSpec) -> PathBuf {
+    let kind = match source {
+        SourceSpec::Twin { .. } => "twin",
+        SourceSpec::Replay { .. } => "replay",
+        SourceSpec::Serial(_) => "controller",
+    };
+    data_dir.join(format!("estimator-state-{kind}.json"))
+}
+
+/// How often the session saves the estimators' state (and once more when it ends): a crash
+/// loses at most this much of it.
+const SAVE_STATE_EVERY: Duration = Duration::from_secs(60);
 
 /// Why a session could not start.
 #[derive(Debug, thiserror::Error)]
@@ -218,6 +235,11 @@ impl Session {
                 ),
             },
         };
+        let state_path = estimator_state_path(&config.data_dir, &config.source);
+        let (pending_state, state_note) = match (&pipeline, &config.profile) {
+            (Some(_), Some(profile)) => take_up_saved_state(&state_path, profile, link.schema()),
+            _ => (None, None),
+        };
         let mut names = link.schema().names().to_vec();
         if let Some(pipeline) = &pipeline {
             names.extend(pipeline.outputs().into_iter().map(|o| o.column));
@@ -255,9 +277,18 @@ impl Session {
                 .collect(),
             last_time_s: None,
             notes_said: 0,
+            pending_state,
+            state_path,
+            last_row: Vec::new(),
+            last_row_unix_s: None,
+            state_saved_at: Instant::now(),
+            state_save_failed: false,
         };
         if let Some(error) = pipeline_error {
             worker.event(EventKind::Condition, Severity::Warning, error);
+        }
+        if let Some(note) = state_note {
+            worker.event(EventKind::Condition, Severity::Warning, note);
         }
         // What the estimators cannot do on this link (e.g. no abnormality score without the
         // depth of cut) is said once, so a missing reading is never a mystery.
@@ -353,6 +384,19 @@ struct Worker {
     /// How many of the pipeline's notes have been said as events: it adds one when a frame
     /// shows something (a machine already warm at the first frame).
     notes_said: usize,
+    /// A pipeline that took up the state the last session saved, and that state: it replaces
+    /// `pipeline` if the first frame shows the machine where the state left it.
+    pending_state: Option<(EstimatorPipeline, SavedState)>,
+    /// Where the estimators' state is saved.
+    state_path: PathBuf,
+    /// The newest frame, in the link's columns (what a saved state is checked by), and when it
+    /// arrived (wall clock, s since 1970).
+    last_row: Vec<f64>,
+    last_row_unix_s: Option<f64>,
+    /// When the state was last saved.
+    state_saved_at: Instant,
+    /// Saving failed and was said (said once, until a save succeeds again).
+    state_save_failed: bool,
 }
 
 impl Worker {
@@ -400,14 +444,83 @@ impl Worker {
                 Wake::Tick => {
                     next_tick = tokio::time::Instant::now() + TICK;
                     self.publish_status();
+                    if self.state_saved_at.elapsed() >= SAVE_STATE_EVERY {
+                        self.save_state();
+                    }
                 }
             }
             if self.updates.is_closed() {
                 break;
             }
         }
+        self.save_state();
         if let Some(recorder) = self.recorder.take() {
             let _ = recorder.finish();
+        }
+    }
+
+    /// Takes up the last session's state if the first frame shows the machine where it was
+    /// left, and says either way.
+    fn resume_or_start_afresh(&mut self, first: &[f64]) {
+        let Some((restored, saved)) = self.pending_state.take() else {
+            return;
+        };
+        match saved.check_resume(self.link.schema(), first, unix_now_s()) {
+            Ok(Resume {
+                gap_s,
+                time_shift_s,
+            }) => {
+                let mut restored = restored;
+                restored.shift_machine_time(time_shift_s);
+                self.pipeline = Some(restored);
+                self.event(
+                    EventKind::Condition,
+                    Severity::Normal,
+                    format!(
+                        "estimators: carried on from the state the last session saved, {gap_s:.0} s \
+                         before this session's first frame (the inputs of that frame held over \
+                         the break)"
+                    ),
+                );
+            }
+            Err(why) => self.event(
+                EventKind::Condition,
+                Severity::Warning,
+                format!(
+                    "estimators: started afresh, not from the state saved at machine time \
+                     {:.1} s: {why}",
+                    saved.time_s
+                ),
+            ),
+        }
+    }
+
+    /// Writes the estimators' state after the newest frame (replacing the file whole, so a
+    /// crash mid-write leaves the previous one); says a failure once.
+    fn save_state(&mut self) {
+        self.state_saved_at = Instant::now();
+        let Some(mut saved) = self
+            .pipeline
+            .as_mut()
+            .and_then(|p| p.save_state(&self.last_row))
+        else {
+            return;
+        };
+        saved.frame_unix_s = self.last_row_unix_s;
+        match write_state(&self.state_path, &saved) {
+            Ok(()) => self.state_save_failed = false,
+            Err(error) if !self.state_save_failed => {
+                self.state_save_failed = true;
+                self.event(
+                    EventKind::Condition,
+                    Severity::Warning,
+                    format!(
+                        "estimators: their state cannot be saved ({error}); a restarted HMI \
+                         will start them afresh"
+                    ),
+                );
+            }
+            Err(_) => {}
         }
     }
 
@@ -436,8 +549,13 @@ impl Worker {
             }
         }
         let mut rows: Vec<Vec<f64>> = frames.into_iter().map(|f| f.row).collect();
-        if let Some(t) = rows.last().and_then(|r| r.first()) {
-            self.last_time_s = Some(*t);
+        if let Some(first) = rows.first() {
+            self.resume_or_start_afresh(first);
+        }
+        if let Some(last) = rows.last() {
+            self.last_time_s = last.first().copied();
+            self.last_row.clone_from(last);
+            self.last_row_unix_s = unix_now_s();
         }
         if let Some(pipeline) = self.pipeline.as_mut() {
             for row in &mut rows {
@@ -709,6 +827,11 @@ impl Worker {
                 self.send_audit();
             }
             SessionCommand::ResetToolCalibration => {
+                // Before the first frame the pipeline may yet be replaced by the one that took
+                // up the saved state: the measurement holds for either.
+                if let Some((restored, _)) = self.pending_state.as_mut() {
+                    restored.reset_tool_calibration();
+                }
                 if let Some(pipeline) = self.pipeline.as_mut() {
                     pipeline.reset_tool_calibration();
                     let origins = pipeline.elongation_origins();
@@ -923,6 +1046,53 @@ impl Worker {
         );
         self.send(SessionUpdate::PushFinished(result));
     }
+}
+
+/// The state the last session saved at `path`, taken up by a pipeline of `profile` on
+/// `schema`, or why not (`None` and nothing to say when there is no file).
+fn take_up_saved_state(
+    path: &std::path::Path,
+    profile: &MachineProfile,
+    schema: &Schema,
+) -> (Option<(EstimatorPipeline, SavedState)>, Option<String>) {
+    let text = match std::fs::read_to_string(path) {
+        Ok(text) => text,
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => return (None, None),
+        Err(error) => {
+            let note = format!("estimators: started afresh: {}: {error}", path.display());
+            return (None, Some(note));
+        }
+    };
+    let taken = serde_json::from_str::<SavedState>(&text)
+        .map_err(|e| e.to_string())
+        .and_then(|saved| {
+            let mut pipeline =
+                EstimatorPipeline::new(profile, schema).map_err(|e| e.to_string())?;
+            pipeline.restore_state(&saved).map_err(|e| e.to_string())?;
+            Ok((pipeline, saved))
+        });
+    match taken {
+        Ok(pending) => (Some(pending), None),
+        Err(why) => (
+            None,
+            Some(format!(
+                "estimators: started afresh, not from the state in {}: {why}",
+                path.display()
+            )),
+        ),
+    }
+}
+
+/// Writes a saved state to a file beside `path` and renames it over `path`.
+fn write_state(path: &std::path::Path, saved: &SavedState) -> Result<(), String> {
+    let at = |e: std::io::Error| format!("{}: {e}", path.display());
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(at)?;
+    }
+    let text = serde_json::to_string(saved).map_err(|e| e.to_string())? + "\n";
+    let partial = path.with_extension("json.partial");
+    std::fs::write(&partial, text).map_err(at)?;
+    std::fs::rename(&partial, path).map_err(at)
 }
 
 /// Writes a signed-off warm-up report as `warmup/warmup-<time>.json` and `.txt` in the data

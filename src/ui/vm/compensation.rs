@@ -128,7 +128,8 @@ pub fn elongation_counted_from(state: &HmiState, axis: AxisId) -> Result<String,
             time_s,
             started_warm_K,
         }) => Ok(format!(
-            "counted from the tool measurement at machine time {time_s:.1} s{}",
+            "counted from the tool measurement at {}{}",
+            machine_time(time_s),
             started_warm_K.map_or_else(String::new, |k| format!(
                 "; the spindle was {k:.1} K above the room when the estimates started, so for \
                  the first hours the model's heat may read growth a spindle in balance does not \
@@ -136,22 +137,38 @@ pub fn elongation_counted_from(state: &HmiState, axis: AxisId) -> Result<String,
             ))
         )),
         Some(ElongationOrigin::FirstFrameAtRest { time_s }) => Ok(format!(
-            "counted from the estimates' start at machine time {time_s:.1} s, the spindle at \
-             rest then (no tool measured in this session)"
+            "counted from the estimates' start at {}, the spindle at rest then (no tool \
+             measured since)",
+            machine_time(time_s)
         )),
         Some(ElongationOrigin::FirstFrameWarm { time_s, excess_K }) => Err(format!(
             "the spindle was {excess_K:.1} K above the room when the estimates started at \
-             machine time {time_s:.1} s, so its growth before then is unknown: {measure}"
+             {}, so its growth before then is unknown: {measure}",
+            machine_time(time_s)
         )),
         Some(ElongationOrigin::FirstFrameUnread { time_s }) => Err(format!(
-            "no room or spindle stator reading at the estimates' start (machine time \
-             {time_s:.1} s) says whether the spindle was at rest: {measure}"
+            "no room or spindle stator reading at the estimates' start ({}) says whether the \
+             spindle was at rest: {measure}",
+            machine_time(time_s)
         )),
         None => Err(
             "the estimators have not yet counted a frame since they started or the tool was \
              measured"
                 .into(),
         ),
+    }
+}
+
+/// A machine time in words; one before zero is before this session's clock started (the
+/// estimators carried on from the last session's state, whose times moved onto this clock).
+fn machine_time(time_s: f64) -> String {
+    if time_s < 0.0 {
+        format!(
+            "machine time {time_s:.1} s (before this session's clock started: carried over from \
+             the last session)"
+        )
+    } else {
+        format!("machine time {time_s:.1} s")
     }
 }
 
