@@ -1461,10 +1461,15 @@ mod tests {
                 time_shift_s,
             })
         };
-        assert_eq!(at(t + 120.0, 0.8), resume(120.0, 0.0));
-        assert!(
-            matches!(at(t + 120.0, 1.5), Err(StateError::Moved { column, .. }) if column == "S.stator_temp_C")
-        );
+        // In two minutes a stator may move 1 K + 1.5 K/min × 2 min.
+        assert_eq!(at(t + 120.0, 3.9), resume(120.0, 0.0));
+        assert_eq!(at(t + 120.0, -3.9), resume(120.0, 0.0));
+        assert!(matches!(
+            at(t + 120.0, 4.1),
+            Err(StateError::Moved { column, allowed_K, .. })
+                if column == "S.stator_temp_C" && (allowed_K - 4.0).abs() < 1e-9
+        ));
+        assert!(matches!(at(t + 1.0, -1.1), Err(StateError::Moved { .. })));
         assert!(matches!(
             at(t + 120.0, f64::NAN),
             Err(StateError::Unread { .. })

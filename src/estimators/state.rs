@@ -11,6 +11,8 @@
 //! state is taken up only by the same models and only on a machine that is where it was left
 //! ([`SavedState::check_resume`]).
 
+#![allow(non_snake_case)] // unit suffixes (`_K`) are part of the names
+
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
@@ -29,11 +31,22 @@ pub const STATE_FORMAT: u32 = 1;
 /// longer one is better taken as a fresh start (with the warm start's seed).
 pub const MAX_RESUME_GAP_S: f64 = 600.0;
 
-/// How far a stator or the room may read from where it read when the state was saved, K, for
-/// the machine to count as where it was left. A stator follows its winding's heat within
-/// minutes, so a machine that went on cutting hard, or cooled down, while the HMI was closed
-/// reads degrees away; one that stood or ran steadily reads within a fraction of this.
+/// How far a stator or the room may read from where it read when the state was saved, K,
+/// with no time passed: beyond a reading's noise and the fraction of a minute a restart takes.
 pub const RESUME_READING_TOLERANCE_K: f64 = 1.0;
+
+/// How fast a stator may move while the HMI is closed, K per minute, added to
+/// [`RESUME_READING_TOLERANCE_K`] for the time passed: a spindle's stator moves fastest (on the
+/// twin's production program, three 8 h shifts, at most 1.3 K in a minute and 7 K in ten), so
+/// a machine that went on cutting or stood cooling still counts as where it was left, while one
+/// whose stators read what they cannot have reached in the time (a controller or twin started
+/// again from cold, another machine) does not.
+pub const RESUME_READING_RATE_K_PER_MIN: f64 = 1.5;
+
+/// How far a reading may have moved in `gap_s` for the machine to count as where it was left.
+pub fn resume_tolerance_K(gap_s: f64) -> f64 {
+    RESUME_READING_TOLERANCE_K + RESUME_READING_RATE_K_PER_MIN * gap_s / 60.0
+}
 
 /// The wall clock now, s since 1970 (UTC); `None` on a clock set before 1970.
 pub fn unix_now_s() -> Option<f64> {
@@ -98,7 +111,7 @@ pub enum StateError {
     },
     /// A stator or the room reads far from where it read when the state was saved.
     #[error(
-        "`{column}` reads {now:.2} now and read {saved:.2} then: the machine is not where the state left it (within {RESUME_READING_TOLERANCE_K} K)"
+        "`{column}` reads {now:.2} now and read {saved:.2} then, {gap_s:.0} s before, more than the {allowed_K:.1} K it can move in that time: the machine is not where the state left it"
     )]
     Moved {
         /// The column.
@@ -107,6 +120,10 @@ pub enum StateError {
         now: f64,
         /// What it read when the state was saved.
         saved: f64,
+        /// The time passed, s.
+        gap_s: f64,
+        /// How far it may have moved in that time, K ([`resume_tolerance_K`]).
+        allowed_K: f64,
     },
     /// A column the state was checked by is missing now, or unread.
     #[error(
@@ -300,7 +317,8 @@ impl SavedState {
     /// Whether the state may be taken up on a machine whose first frame of the new session is
     /// `frame` (laid out as `schema`), received at `now_unix_s` (wall clock, s since 1970):
     /// at most [`MAX_RESUME_GAP_S`] has passed since the state's last frame, and every stator
-    /// and the room read within [`RESUME_READING_TOLERANCE_K`] of where they read then.
+    /// and the room read within what they can have moved in that time
+    /// ([`resume_tolerance_K`]) of where they read then.
     ///
     /// The time passed is the machine time between the two frames where the clock went on (a
     /// replay of the recording's continuation); where it started again (a live link's time
@@ -342,11 +360,14 @@ impl SavedState {
                 .ok_or_else(|| StateError::Unread {
                     column: reading.column.clone(),
                 })?;
-            if (now - saved).abs() > RESUME_READING_TOLERANCE_K {
+            let allowed_K = resume_tolerance_K(gap_s);
+            if (now - saved).abs() > allowed_K {
                 return Err(StateError::Moved {
                     column: reading.column.clone(),
                     now,
                     saved,
+                    gap_s,
+                    allowed_K,
                 });
             }
         }
