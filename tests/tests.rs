@@ -5,6 +5,7 @@ mod common;
 mod discrepancy;
 mod discrepancy_other_machine;
 mod discrepancy_spindle;
+mod estimator_state;
 mod estimators_cli;
 mod fit;
 mod link_replay;

@@ -25,7 +25,7 @@ use crate::compensation::{
 use crate::estimators::EstimatorPipeline;
 use crate::estimators::fingerprint::FrictionFingerprint;
 use crate::estimators::pipeline::ElongationOrigin;
-use crate::estimators::state::{Resume, SavedState, unix_now_s};
+use crate::estimators::state::{SavedState, unix_now_s};
 use crate::link::{
     ConnectionState, ControllerLink, LinkError, ModbusConfig, Recorder, RecorderConfig,
     ReplayOptions, ReplaySpeed,
@@ -466,12 +466,10 @@ impl Worker {
             return;
         };
         match saved.check_resume(self.link.schema(), first, unix_now_s()) {
-            Ok(Resume {
-                gap_s,
-                time_shift_s,
-            }) => {
+            Ok(resume) => {
                 let mut restored = restored;
-                restored.shift_machine_time(time_shift_s);
+                restored.carry_on(&resume);
+                let gap_s = resume.gap_s;
                 self.pipeline = Some(restored);
                 self.event(
                     EventKind::Condition,
