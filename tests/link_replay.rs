@@ -658,3 +658,39 @@ fn origin_of_spindle(
     }
     newest.expect("the session says where the elongation counts from")
 }
+
+/// A state file that is not a saved state (cut off, or written by hand) is not taken up: the
+/// session says why, names the file, starts its estimators afresh and runs.
+#[test]
+fn a_damaged_estimator_state_file_is_named_and_the_estimators_start_afresh() {
+    use servosight::ui::SourceSpec;
+    use servosight::ui::session::estimator_state_path;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("warm.csv");
+    write_warm_replay(&path, 5, "X.stator_temp_C", 24.0);
+    let source = SourceSpec::Replay {
+        path,
+        options: ReplayOptions::default(),
+    };
+    let state = estimator_state_path(&dir.path().join("data"), &source);
+    std::fs::create_dir_all(state.parent().unwrap()).unwrap();
+    std::fs::write(
+        &state,
+        "{\"format\": 1, \"profile\": \"it25-twin\", \"values\": [1.0,",
+    )
+    .unwrap();
+    let mut session = twin_profile_session(dir.path(), source);
+    let events = events_until(&mut session, "machine was warm", Duration::from_millis(200));
+    let said = format!(
+        "estimators: started afresh, not from the state in {}: EOF while parsing",
+        state.display()
+    );
+    assert!(events.iter().any(|e| e.contains(&said)), "{events:?}");
+    // The estimators ran (from the profile's warm start, as on any start).
+    assert!(
+        events
+            .iter()
+            .any(|e| e.contains("the machine was warm at the first frame")),
+        "{events:?}"
+    );
+}
