@@ -695,7 +695,7 @@ fn a_dry_shop_with_a_steady_room_calibrates_without_coolant_or_room_terms() {
 
 /// The recording at `path` from `from_s` on (its metadata and header kept), written to `out`:
 /// a recording that starts mid-shift.
-fn rows_from(path: &std::path::Path, out: &std::path::Path, from_s: f64) {
+fn rows_between(path: &std::path::Path, out: &std::path::Path, from_s: f64, until_s: f64) {
     let text = std::fs::read_to_string(path).unwrap();
     let mut past_header = false;
     let kept: String = text
@@ -706,7 +706,8 @@ fn rows_from(path: &std::path::Path, out: &std::path::Path, from_s: f64) {
                 || line
                     .split(',')
                     .next()
-                    .is_some_and(|t| t.parse::<f64>().unwrap() >= from_s);
+                    .map(|t| t.parse::<f64>().unwrap())
+                    .is_some_and(|t| t >= from_s && t < until_s);
             past_header |= line.starts_with("time_s");
             keep
         })
@@ -729,7 +730,7 @@ fn a_recording_that_starts_mid_shift_reads_warm_parts_from_its_first_row() {
         &["--scenario", "production", "--hours", "4", "--seed", "11"],
     );
     let recording = dir.path().join("from-mid-shift.csv");
-    rows_from(&shift, &recording, 5400.0);
+    rows_between(&shift, &recording, 5400.0, f64::INFINITY);
     let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
     let profile_text = std::fs::read_to_string(&shipped).unwrap();
     // The shipped profile as calibrated before warm starts existed: every `warm_start` table
@@ -811,7 +812,7 @@ fn estimate_says_where_the_spindle_elongation_counts_from() {
         &["--scenario", "production", "--hours", "2", "--seed", "11"],
     );
     let mid_shift = dir.path().join("from-mid-shift.csv");
-    rows_from(&shift, &mid_shift, 3600.0);
+    rows_between(&shift, &mid_shift, 3600.0, f64::INFINITY);
     let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
     let origin_of = |recording: &std::path::Path| {
         let report = estimate_report(dir.path(), &profile, recording);
@@ -863,7 +864,7 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
         &["--scenario", "production", "--hours", "3", "--seed", "2"],
     );
     let experiment = dir.path().join("exp-from-mid-shift.csv");
-    rows_from(&shift, &experiment, 5400.0);
+    rows_between(&shift, &experiment, 5400.0, f64::INFINITY);
     let profile = dir.path().join("profile.toml");
     let run = servosight(&[
         "calibrate",
@@ -892,4 +893,89 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
             "{part}: {text}"
         );
     }
+}
+
+/// A shift recorded in pieces (the HMI's recorder starts a new file every hour) is estimated
+/// as one when the pieces are given in order: the same scores and the same estimates, row for
+/// row, as the whole file, the elongation counting from the first piece's start. The second
+/// piece alone starts afresh (its elongation from a warm spindle). Pieces out of order, or with
+/// other columns, are refused with the file named.
+#[test]
+fn estimate_carries_on_across_the_pieces_of_a_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let shift = simulate(
+        dir.path(),
+        "shift.csv",
+        &["--scenario", "production", "--hours", "2", "--seed", "12"],
+    );
+    let (first, second) = (
+        dir.path().join("piece-1.csv"),
+        dir.path().join("piece-2.csv"),
+    );
+    rows_between(&shift, &first, 0.0, 3600.0);
+    rows_between(&shift, &second, 3600.0, f64::INFINITY);
+    let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+    let estimate = |recordings: &[&std::path::Path], name: &str| {
+        let (json, estimates) = (
+            dir.path().join(format!("{name}.json")),
+            dir.path().join(format!("{name}.csv")),
+        );
+        let mut args = vec!["estimate", "--profile", arg(&profile), "--recording"];
+        args.extend(recordings.iter().map(|r| arg(r)));
+        args.extend(["--json", arg(&json), "-o", arg(&estimates)]);
+        let run = servosight(&args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let rows: Vec<String> = std::fs::read_to_string(&estimates)
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(str::to_string)
+            .collect();
+        (report, rows)
+    };
+    let (whole, whole_rows) = estimate(&[&shift], "whole");
+    let (pieces, piece_rows) = estimate(&[&first, &second], "pieces");
+    assert_eq!(pieces, whole);
+    assert_eq!(piece_rows, whole_rows);
+    assert_eq!(whole["rows"], 7201);
+    assert_eq!(
+        whole["elongation_origins"][0]["counted_from"]["kind"],
+        "first_frame_at_rest"
+    );
+    let (alone, _) = estimate(&[&second], "alone");
+    assert_eq!(
+        alone["elongation_origins"][0]["counted_from"]["kind"],
+        "first_frame_warm"
+    );
+
+    let refused = |recordings: &[&std::path::Path]| {
+        let mut args = vec!["estimate", "--profile", arg(&profile), "--recording"];
+        args.extend(recordings.iter().map(|r| arg(r)));
+        let run = servosight(&args);
+        assert!(!run.status.success());
+        stderr(&run)
+    };
+    let backwards = refused(&[&second, &first]);
+    assert!(
+        backwards.contains(&format!("{}: line", first.display()))
+            && backwards.contains("this piece starts at 0 s, before 7200 s where")
+            && backwards.contains("give the pieces in the order they were recorded"),
+        "{backwards}"
+    );
+    let other = dir.path().join("other-columns.csv");
+    let text = std::fs::read_to_string(&second)
+        .unwrap()
+        .replacen("ambient_C", "room_C", 1);
+    std::fs::write(&other, text).unwrap();
+    let columns = refused(&[&first, &other]);
+    assert!(
+        columns.contains(&format!(
+            "{}: its columns are not those of {}",
+            other.display(),
+            first.display()
+        )) && columns.contains("missing [\"ambient_C\"], not in the first [\"room_C\"]"),
+        "{columns}"
+    );
 }

@@ -10,7 +10,7 @@ use servosight::estimators::accuracy::{AccuracyRow, StreamError, StreamedRun, ru
 use servosight::estimators::models::WARM_START_FLOOR_K;
 use servosight::estimators::pipeline::ElongationOrigin;
 use servosight::profile::MachineProfile;
-use servosight::signal::{RecordingReader, RecordingWriter, Schema};
+use servosight::signal::{RecordingPieces, RecordingWriter, Schema};
 
 /// Arguments of `servosight estimate`.
 #[derive(Debug, clap::Args)]
@@ -18,9 +18,11 @@ pub struct Args {
     /// A calibrated machine profile.
     #[arg(long)]
     pub profile: PathBuf,
-    /// The recording to estimate over.
-    #[arg(long)]
-    pub recording: PathBuf,
+    /// The recording to estimate over; several files are the pieces of one recording, read as
+    /// one in the order given (the HMI's recorder starts a new piece every hour): the
+    /// estimators carry on from piece to piece.
+    #[arg(long, required = true, num_args = 1..)]
+    pub recording: Vec<PathBuf>,
     /// Write the estimates (time plus one column per estimate) to this CSV. An estimate that is
     /// not known in every row is 0 where unknown and has a `<column>_valid` 0/1 column.
     #[arg(short = 'o', long = "output")]
@@ -81,6 +83,15 @@ struct AbnormalityRow {
     reason: String,
 }
 
+/// The recording's files as the user gave them, comma-separated.
+fn recording_names(paths: &[PathBuf]) -> String {
+    paths
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// The columns of the estimates file: time, then each estimate, followed by its
 /// `<column>_valid` where it was unknown in some row. The format has no empty cells, so such
 /// an estimate (the abnormality score before enough steady running) is written as 0 where
@@ -111,13 +122,13 @@ fn write_estimates(
     let metadata = [
         (
             "estimated_from".to_string(),
-            args.recording.display().to_string(),
+            recording_names(&args.recording),
         ),
         ("profile".to_string(), args.profile.display().to_string()),
     ];
     let mut writer = RecordingWriter::create(path, &metadata, &schema)?;
     let mut row = Vec::with_capacity(schema.len());
-    let reader = RecordingReader::open(&args.recording).context("cannot read recording")?;
+    let reader = RecordingPieces::open(&args.recording).context("cannot read recording")?;
     let gappy = &first.unknown_somewhere;
     let mut written = 0;
     run_streaming(profile, reader, &mut |time, values| {
@@ -131,7 +142,7 @@ fn write_estimates(
             .position(|(v, &gappy)| !v.is_finite() && !gappy)
         {
             return Err(servosight::signal::RecordingError::Io {
-                source_name: args.recording.display().to_string(),
+                source_name: recording_names(&args.recording),
                 error: std::io::Error::other(format!(
                     "the recording changed while it was estimated: `{}` is unknown at {time} s \
                      on the second pass, known on the first",
@@ -161,14 +172,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .is_some_and(crate::servosight_cli::is_stdout),
         "-o - is not supported: the estimates go to a file (-o EST.csv)"
     );
-    refuse_overwriting_inputs(
-        &[&args.profile, &args.recording],
-        &[args.output.as_deref(), args.json.as_deref()],
-    )?;
+    let inputs: Vec<&std::path::Path> = std::iter::once(args.profile.as_path())
+        .chain(args.recording.iter().map(PathBuf::as_path))
+        .collect();
+    refuse_overwriting_inputs(&inputs, &[args.output.as_deref(), args.json.as_deref()])?;
     let profile = MachineProfile::load(&args.profile)?;
     // Row by row, never the whole recording in memory (hours of 1 kHz servo data are
     // gigabytes); the estimates file, if asked for, in a second pass.
-    let reader = RecordingReader::open(&args.recording).context("cannot read recording")?;
+    let reader = RecordingPieces::open(&args.recording).context("cannot read recording")?;
     let series = run_streaming(&profile, reader, &mut |_, _| Ok(())).map_err(|e| match e {
         StreamError::Recording(e) => anyhow::Error::new(e).context("cannot read recording"),
         other => other.into(),
@@ -176,7 +187,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         series.rows > 0,
         "{} has a header but no data rows: nothing to estimate",
-        args.recording.display()
+        recording_names(&args.recording)
     );
     let rows = &series.accuracy;
     let finite = |v: f64| v.is_finite().then_some(v);
@@ -301,7 +312,7 @@ mod tests {
         let recording = dir.path().join("r.csv");
         let short = simulate(TwinConfig::new(ScenarioKind::Production, Some(0.1), 3)).unwrap();
         write_recording(&recording, &short).unwrap();
-        let reader = RecordingReader::open(&recording).unwrap();
+        let reader = servosight::signal::RecordingReader::open(&recording).unwrap();
         let first = run_streaming(&profile, reader, &mut |_, _| Ok(())).unwrap();
         // The recording grows before the second pass.
         let long = simulate(TwinConfig::new(ScenarioKind::Production, Some(0.2), 3)).unwrap();
@@ -309,7 +320,7 @@ mod tests {
         let output = dir.path().join("est.csv");
         let args = Args {
             profile: profile_path,
-            recording: recording.clone(),
+            recording: vec![recording.clone()],
             output: Some(output.clone()),
             json: None,
         };

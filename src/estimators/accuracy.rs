@@ -1,11 +1,9 @@
 //! Runs the estimator pipeline over a recording and scores every estimate against its
 //! reference column, like the paper's Table 3.
 
-use std::io::Read;
-
 use crate::fit::autocorrelation::white_noise_from_differences;
 use crate::profile::MachineProfile;
-use crate::signal::{AxisId, Recording, RecordingError, RecordingReader};
+use crate::signal::{AxisId, Recording, RecordingError, RowSource};
 
 use super::abnormality::AbnormalityScore;
 
@@ -88,15 +86,16 @@ pub enum StreamError {
 /// not be written) stops the run.
 pub type RowSink<'a> = dyn FnMut(f64, &[f64]) -> Result<(), RecordingError> + 'a;
 
-/// Runs the profile's pipeline over every row `reader` has left, handing each row's time and
+/// Runs the profile's pipeline over every row `reader` (a recording, or the pieces of one) has
+/// left, handing each row's time and
 /// estimates (in [`StreamedRun::outputs`] order) to `each` as they are made. Only what scores
 /// the estimates against the reference columns the recording has is kept (two numbers a row
 /// for each), so a recording without references (a real machine's) is estimated in constant
 /// memory however long it is: hours of a servo drive's 1 kHz data. The scores are those of
 /// [`accuracy`] on the same rows.
-pub fn run_streaming<R: Read>(
+pub fn run_streaming<S: RowSource>(
     profile: &MachineProfile,
-    mut reader: RecordingReader<R>,
+    mut reader: S,
     each: &mut RowSink<'_>,
 ) -> Result<StreamedRun, StreamError> {
     let mut pipeline = EstimatorPipeline::new(profile, reader.schema())?;
@@ -245,7 +244,8 @@ mod tests {
         let whole = run(&profile, &recording).unwrap();
         let mut text = Vec::new();
         crate::signal::write_recording_to(&mut text, &recording).unwrap();
-        let reader = RecordingReader::from_reader(text.as_slice(), "twin.csv").unwrap();
+        let reader =
+            crate::signal::RecordingReader::from_reader(text.as_slice(), "twin.csv").unwrap();
         let mut handed: Vec<Vec<f64>> = Vec::new();
         let streamed = run_streaming(&profile, reader, &mut |time, values| {
             handed.push(

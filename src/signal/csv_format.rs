@@ -18,7 +18,7 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
 use std::path::Path;
 
-use super::error::{Location, RecordingError, quote_cell};
+use super::error::{Location, PieceOrder, RecordingError, quote_cell};
 use super::recording::{Recording, Schema};
 
 /// Reads a recording row by row.
@@ -43,6 +43,126 @@ impl RecordingReader<File> {
             error: source_err,
         })?;
         Self::from_reader(file, &source)
+    }
+}
+
+/// Rows one after another, with their columns: a recording file, or the pieces of one.
+pub trait RowSource {
+    /// The columns.
+    fn schema(&self) -> &Schema;
+    /// Reads the next row into `out`; `Ok(false)` at the end.
+    fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError>;
+}
+
+impl<R: Read> RowSource for RecordingReader<R> {
+    fn schema(&self) -> &Schema {
+        RecordingReader::schema(self)
+    }
+
+    fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
+        RecordingReader::read_row(self, out)
+    }
+}
+
+/// The pieces of one recording read as one, in the order given: the files a recorder rotates
+/// (every hour by default, each a whole recording with its own header). Every piece must have
+/// the first one's columns, and none may start before the one before it ends; each piece's
+/// rows are checked as [`RecordingReader`] checks them. Opened one at a time, so a shift of
+/// 1 kHz pieces streams in constant memory.
+pub struct RecordingPieces {
+    paths: Vec<std::path::PathBuf>,
+    /// The piece being read (its index in `paths`).
+    at: usize,
+    reader: RecordingReader<File>,
+    /// The last row's time and the piece it came from.
+    last: Option<(f64, usize)>,
+    /// The rows read in the current piece.
+    rows_in_piece: u64,
+}
+
+impl RecordingPieces {
+    /// Opens the first piece (the others when their turn comes). At least one path is needed.
+    pub fn open(paths: &[std::path::PathBuf]) -> Result<Self, RecordingError> {
+        let first = paths.first().ok_or_else(|| RecordingError::Io {
+            source_name: "the recording".into(),
+            error: io::Error::other("no recording file given"),
+        })?;
+        Ok(RecordingPieces {
+            reader: RecordingReader::open(first)?,
+            paths: paths.to_vec(),
+            at: 0,
+            last: None,
+            rows_in_piece: 0,
+        })
+    }
+
+    /// The columns (the first piece's, which every piece has).
+    pub fn schema(&self) -> &Schema {
+        self.reader.schema()
+    }
+
+    /// The metadata of the piece being read.
+    pub fn metadata(&self) -> &[(String, String)] {
+        self.reader.metadata()
+    }
+
+    /// Reads the next row, from the next piece once one ends. `Ok(false)` after the last.
+    pub fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
+        loop {
+            if self.reader.read_row(out)? {
+                let time_s = out[0];
+                if self.rows_in_piece == 0
+                    && let Some((previous_s, piece)) = self.last
+                    && time_s < previous_s
+                {
+                    return Err(RecordingError::PieceOutOfOrder(Box::new(PieceOrder {
+                        at: Location {
+                            source: self.paths[self.at].display().to_string(),
+                            line: self.reader.current_line(),
+                            column: None,
+                        },
+                        time_s,
+                        previous: self.paths[piece].display().to_string(),
+                        previous_s,
+                    })));
+                }
+                self.rows_in_piece += 1;
+                self.last = Some((time_s, self.at));
+                return Ok(true);
+            }
+            let Some(next) = self.paths.get(self.at + 1) else {
+                return Ok(false);
+            };
+            let reader = RecordingReader::open(next)?;
+            let (first, now) = (self.reader.schema().names(), reader.schema().names());
+            if first != now {
+                let missing: Vec<&String> = first.iter().filter(|c| !now.contains(c)).collect();
+                let extra: Vec<&String> = now.iter().filter(|c| !first.contains(c)).collect();
+                let difference = if missing.is_empty() && extra.is_empty() {
+                    "the same columns in another order".to_string()
+                } else {
+                    format!("missing {missing:?}, not in the first {extra:?}")
+                };
+                return Err(RecordingError::PieceColumns {
+                    source_name: next.display().to_string(),
+                    first: self.paths[0].display().to_string(),
+                    difference,
+                });
+            }
+            self.reader = reader;
+            self.at += 1;
+            self.rows_in_piece = 0;
+        }
+    }
+}
+
+impl RowSource for RecordingPieces {
+    fn schema(&self) -> &Schema {
+        RecordingPieces::schema(self)
+    }
+
+    fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
+        RecordingPieces::read_row(self, out)
     }
 }
 

@@ -24,6 +24,20 @@ impl fmt::Display for Location {
     }
 }
 
+/// Where a piece of a recording starts before the one before it ends
+/// ([`RecordingError::PieceOutOfOrder`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PieceOrder {
+    /// The piece's first row.
+    pub at: Location,
+    /// Its time, s.
+    pub time_s: f64,
+    /// The piece before it.
+    pub previous: String,
+    /// That piece's last time, s.
+    pub previous_s: f64,
+}
+
 /// Everything that can be wrong with a recording, read or built.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
@@ -131,6 +145,26 @@ pub enum RecordingError {
         /// The previous row's time.
         previous_s: f64,
     },
+    /// A piece of a recording read as one ([`crate::signal::RecordingPieces`]) has other
+    /// columns than the first piece.
+    #[error(
+        "{source_name}: its columns are not those of {first} (the pieces of one recording must share them): {difference}"
+    )]
+    PieceColumns {
+        /// The piece.
+        source_name: String,
+        /// The first piece.
+        first: String,
+        /// What differs.
+        difference: String,
+    },
+    /// A piece of a recording read as one starts before the piece before it ends: the pieces
+    /// are out of order, or not of one recording.
+    #[error(
+        "{}: this piece starts at {} s, before {} s where {} ends: give the pieces in the order they were recorded",
+        .0.at, .0.time_s, .0.previous_s, .0.previous
+    )]
+    PieceOutOfOrder(Box<PieceOrder>),
     /// The file holds more rows than the reader was asked to keep: a recording too long to
     /// hold in memory at its own rate (see [`crate::signal::RecordingReader::read_averaged`]).
     #[error(
