@@ -5,7 +5,7 @@
 //! `cargo test --release --test tests estimator_state -- --ignored --nocapture`
 
 use servosight::estimators::EstimatorPipeline;
-use servosight::estimators::state::SavedState;
+use servosight::estimators::state::{Clock, SavedState};
 use servosight::profile::MachineProfile;
 use servosight::signal::Recording;
 use servosight::sim::{ScenarioKind, TwinConfig, simulate};
@@ -72,7 +72,7 @@ fn estimates_after_a_break_carried_on_and_afresh() {
                 let expected = &expected[break_s..];
                 recording.row_into(back_at, &mut frame);
                 let resume = saved
-                    .check_resume(schema, &frame, None)
+                    .check_resume(schema, &frame, Clock::Continued)
                     .expect("within the break's tolerance");
                 assert_eq!(resume.gap_s, (break_s + 1) as f64);
                 let mut carried = EstimatorPipeline::new(&profile, schema).unwrap();

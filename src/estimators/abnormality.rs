@@ -40,7 +40,7 @@ pub const WINDOW_S: f64 = 300.0;
 pub const MIN_SPEED_RPM: f64 = 50.0;
 
 /// One sample of an axis as the abnormality estimator reads it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TorqueSample {
     /// Time, s.
     pub time_s: f64,
@@ -59,7 +59,7 @@ pub struct TorqueSample {
 }
 
 /// One block of averaged samples.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TorqueBlock {
     /// Mean of the samples (`cutting`: any sample cutting).
     pub mean: TorqueSample,
@@ -390,6 +390,8 @@ impl MotorAbnormalityEstimator {
 
 impl WalkState for MotorAbnormalityEstimator {
     fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        self.averager.walk_state(walk);
+        self.gate.walk_state(walk);
         walk.value(&mut self.excess);
         walk.value(&mut self.ideal_sum);
         walk.value(&mut self.weight);
@@ -400,11 +402,55 @@ impl WalkState for MotorAbnormalityEstimator {
         walk.value(&mut score.ideal_Nm);
         walk.value(&mut score.standard_error_pct);
         walk.count(&mut score.steady_blocks);
-        if walk.is_restoring() {
-            // A block is steady only beside its neighbours; none spans a break in the frames.
-            self.averager = BlockAverager::default();
-            self.gate = SteadyBlockGate::default();
-        }
+    }
+}
+
+impl MotorAbnormalityEstimator {
+    /// Drops the block being averaged and the blocks waiting to be judged: for frames whose
+    /// clock started again, on which a block (a span of machine time) cannot go on.
+    pub fn start_blocks_again(&mut self) {
+        self.averager = BlockAverager::default();
+        self.gate = SteadyBlockGate::default();
+    }
+}
+
+impl WalkState for BlockAverager {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        let mut block = self.block.map(|b| b as f64);
+        walk.optional(&mut block);
+        self.block = block.map(|b| b as i64);
+        walk.values(&mut self.sum);
+        walk.value(&mut self.min_rpm);
+        walk.value(&mut self.max_rpm);
+        walk.flag(&mut self.cutting);
+        let mut samples = self.samples as u64;
+        walk.count(&mut samples);
+        self.samples = samples as usize;
+    }
+}
+
+impl WalkState for SteadyBlockGate {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        walk.optional_state(&mut self.before);
+        walk.optional_state(&mut self.candidate);
+    }
+}
+
+impl WalkState for TorqueBlock {
+    fn walk_state(&mut self, walk: &mut StateWalk<'_>) {
+        let s = &mut self.mean;
+        walk.value(&mut s.time_s);
+        walk.value(&mut s.speed_rpm);
+        walk.value(&mut s.torque_Nm);
+        walk.value(&mut s.stator_C);
+        walk.value(&mut s.ambient_C);
+        walk.value(&mut s.stroke_fraction);
+        walk.flag(&mut s.cutting);
+        walk.value(&mut self.speed_range_rpm.0);
+        walk.value(&mut self.speed_range_rpm.1);
+        let mut samples = self.samples as u64;
+        walk.count(&mut samples);
+        self.samples = samples as usize;
     }
 }
 

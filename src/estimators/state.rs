@@ -30,11 +30,11 @@ pub const STATE_FORMAT: u32 = 1;
 /// which is right for a machine that stood or ran steadily and errs for one whose program
 /// changed meanwhile. On the twin's production program (docs/accuracy.md, *An HMI restarted
 /// mid-shift*) the carried state follows every estimate more closely than a fresh start (with
-/// the profile's warm start) over breaks of up to three minutes; over four and five, the nut
-/// and the front bearing read a fresh start's seed a little better (nut 0.15 K off on average
-/// against 0.13 K), while the elongation still counts from its tool measurement (0.5 µm off
-/// against 20 µm: a fresh start must have the tool measured again before its thermal offset is
-/// used).
+/// the profile's warm start) over breaks of up to three minutes; over four the nut, over five
+/// the nut and the front bearing, read a fresh start's seed a little better (nut 0.15–0.16 K
+/// off on average against 0.13–0.14 K), while the elongation still counts from its tool
+/// measurement (0.3–0.5 µm off against 20 µm: a fresh start must have the tool measured again
+/// before its thermal offset is used).
 pub const MAX_RESUME_GAP_S: f64 = 300.0;
 
 /// How far a stator or the room may read from where it read when the state was saved, K,
@@ -96,23 +96,36 @@ pub enum StateError {
         /// Values the estimators keep.
         expected: usize,
     },
-    /// The machine's clock is behind the state's and no wall-clock time tells how long ago the
-    /// state was saved.
+    /// The file is not a saved state (cut off, or not JSON of this layout).
+    #[error("it is not a saved state: {0}")]
+    Damaged(String),
+    /// The first frame has no time.
+    #[error("the first frame has no time")]
+    NoTime,
+    /// The recording's clock is behind the state's.
     #[error(
-        "the machine's clock reads {now_s:.1} s, before the {saved_s:.1} s the state was saved at, and no wall-clock time says how long ago that was"
+        "the recording's time reads {now_s:.1} s, before the {saved_s:.1} s the state was saved at: another recording, or the same one opened again"
     )]
     ClockBehind {
-        /// Machine time of the first frame now, s.
+        /// Time of the first frame now, s.
         now_s: f64,
         /// Machine time of the state, s.
         saved_s: f64,
     },
+    /// The wall clock reads earlier than when the state was saved.
+    #[error("the computer's clock reads earlier than when the state was saved")]
+    WallClockBehind,
+    /// The state does not say when it was saved, and the frames' clock started again.
+    #[error(
+        "it does not say when its last frame was received, and the link's clock has started again"
+    )]
+    NoWallClock,
     /// Too long has passed for the state to stand for the machine.
     #[error(
-        "{gap_s:.0} s of machine time passed since it was saved, longer than the {MAX_RESUME_GAP_S:.0} s over which it is taken up"
+        "{gap_s:.0} s passed since its last frame, longer than the {MAX_RESUME_GAP_S:.0} s over which it is taken up"
     )]
     TooLong {
-        /// Machine time since the state, s.
+        /// Time passed since the state's last frame, s.
         gap_s: f64,
     },
     /// A stator or the room reads far from where it read when the state was saved.
@@ -131,7 +144,15 @@ pub enum StateError {
         /// How far it may have moved in that time, K ([`resume_tolerance_K`]).
         allowed_K: f64,
     },
-    /// A column the state was checked by is missing now, or unread.
+    /// A column the state is checked by was not read when it was saved.
+    #[error(
+        "`{column}` was not read when it was saved, so whether the machine is where the state left it cannot be told"
+    )]
+    UnreadThen {
+        /// The column.
+        column: String,
+    },
+    /// A column the state is checked by is missing now, or unread.
     #[error(
         "`{column}` is not read now, so whether the machine is where the state left it cannot be told"
     )]
@@ -193,7 +214,7 @@ impl<'a> StateWalk<'a> {
     pub fn flag(&mut self, b: &mut bool) {
         let mut x = f64::from(u8::from(*b));
         self.value(&mut x);
-        *b = x != 0.0;
+        *b = x == 1.0;
     }
 
     /// Saves or restores a count (exact up to 2⁵³).
@@ -214,6 +235,15 @@ impl<'a> StateWalk<'a> {
         self.flag(&mut present);
         self.value(&mut v);
         *x = present.then_some(v);
+    }
+
+    /// Saves or restores an optional part (a flag, then the part, a default one when absent).
+    pub fn optional_state<T: WalkState + Default>(&mut self, x: &mut Option<T>) {
+        let mut present = x.is_some();
+        self.flag(&mut present);
+        let mut inner = x.take().unwrap_or_default();
+        inner.walk_state(self);
+        *x = present.then_some(inner);
     }
 
     /// Saves or restores every number of an array.
@@ -321,43 +351,40 @@ impl SavedState {
     }
 
     /// Whether the state may be taken up on a machine whose first frame of the new session is
-    /// `frame` (laid out as `schema`), received at `now_unix_s` (wall clock, s since 1970):
-    /// at most [`MAX_RESUME_GAP_S`] has passed since the state's last frame, and every stator
-    /// and the room read within what they can have moved in that time
-    /// ([`resume_tolerance_K`]) of where they read then.
-    ///
-    /// The time passed is the machine time between the two frames where the clock went on (a
-    /// replay of the recording's continuation); where it started again (a live link's time
-    /// counts from the link's start, the twin's from its start), the wall-clock time between
-    /// them ([`Self::frame_unix_s`]), and the state's times move onto the new clock
-    /// ([`Resume::time_shift_s`]).
+    /// `frame` (laid out as `schema`), its time on `clock`: at most [`MAX_RESUME_GAP_S`] has
+    /// passed since the state's last frame, and every stator and the room read within what they
+    /// can have moved in that time ([`resume_tolerance_K`]) of where they read then.
     pub fn check_resume(
         &self,
         schema: &Schema,
         frame: &[f64],
-        now_unix_s: Option<f64>,
+        clock: Clock,
     ) -> Result<Resume, StateError> {
         let now_s = frame.first().copied().unwrap_or(f64::NAN);
-        let gap_s = if now_s >= self.time_s {
-            now_s - self.time_s
-        } else {
-            match (self.frame_unix_s, now_unix_s) {
-                (Some(then), Some(now)) if now >= then => now - then,
-                _ => {
-                    return Err(StateError::ClockBehind {
-                        now_s,
-                        saved_s: self.time_s,
-                    });
-                }
+        if !now_s.is_finite() {
+            return Err(StateError::NoTime);
+        }
+        let gap_s = match clock {
+            Clock::Continued if now_s >= self.time_s => now_s - self.time_s,
+            Clock::Continued => {
+                return Err(StateError::ClockBehind {
+                    now_s,
+                    saved_s: self.time_s,
+                });
             }
+            Clock::Restarted { now_unix_s } => match self.frame_unix_s {
+                Some(then) if now_unix_s >= then => now_unix_s - then,
+                Some(_) => return Err(StateError::WallClockBehind),
+                None => return Err(StateError::NoWallClock),
+            },
         };
         if gap_s.is_nan() || gap_s > MAX_RESUME_GAP_S {
             return Err(StateError::TooLong { gap_s });
         }
         for reading in &self.readings {
-            let Some(saved) = reading.value else {
-                continue;
-            };
+            let saved = reading.value.ok_or_else(|| StateError::UnreadThen {
+                column: reading.column.clone(),
+            })?;
             let now = schema
                 .index_of(&reading.column)
                 .and_then(|i| frame.get(i))
@@ -380,8 +407,41 @@ impl SavedState {
         Ok(Resume {
             gap_s,
             time_shift_s: (now_s - gap_s) - self.time_s,
+            clock,
         })
     }
+
+    /// Reads a saved state from its JSON, its layout's version first: a file of another version
+    /// is [`StateError::Format`], not whatever field that version lacks.
+    pub fn from_json(text: &str) -> Result<SavedState, StateError> {
+        #[derive(Deserialize)]
+        struct Version {
+            format: u32,
+        }
+        let damaged = |e: serde_json::Error| StateError::Damaged(e.to_string());
+        let version: Version = serde_json::from_str(text).map_err(damaged)?;
+        if version.format != STATE_FORMAT {
+            return Err(StateError::Format {
+                found: version.format,
+            });
+        }
+        serde_json::from_str(text).map_err(damaged)
+    }
+}
+
+/// The clock the frames of the new session are on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Clock {
+    /// Their time goes on from the state's (a replay of the recording's continuation): the
+    /// time passed is the machine time between the two frames, and a time behind the state's
+    /// is another recording, or the same one opened again.
+    Continued,
+    /// Their time started again (a live link's time counts from the link's start): the time
+    /// passed is the wall-clock time between the two frames.
+    Restarted {
+        /// When the first frame now was received, s since 1970 (UTC).
+        now_unix_s: f64,
+    },
 }
 
 /// How a saved state is taken up.
@@ -392,18 +452,23 @@ pub struct Resume {
     /// What to add to the state's machine times to put them on the clock of the frames now, s
     /// (0 where the clock went on).
     pub time_shift_s: f64,
+    /// The clock the frames now are on.
+    pub clock: Clock,
 }
 
 /// SHA-256 (hex) of a calibration as JSON: a state saved with one calibration is taken up only
-/// by the same models (other time constants or terms keep other state).
-pub fn calibration_fingerprint(calibration: &Calibration) -> String {
+/// by the same models (other time constants or terms keep other state). `None` for one that
+/// cannot be written as JSON, whose state is then neither saved nor taken up.
+pub fn calibration_fingerprint(calibration: &Calibration) -> Option<String> {
     // The calibration's maps are ordered (BTreeMap), so the same calibration gives the same
-    // text; a calibration that cannot be written as JSON matches nothing.
-    let text = serde_json::to_string(calibration).unwrap_or_default();
-    Sha256::digest(text.as_bytes())
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
+    // text.
+    let text = serde_json::to_string(calibration).ok()?;
+    Some(
+        Sha256::digest(text.as_bytes())
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect(),
+    )
 }
 
 #[cfg(test)]

@@ -25,7 +25,7 @@ use crate::compensation::{
 use crate::estimators::EstimatorPipeline;
 use crate::estimators::fingerprint::FrictionFingerprint;
 use crate::estimators::pipeline::ElongationOrigin;
-use crate::estimators::state::{SavedState, unix_now_s};
+use crate::estimators::state::{Clock, SavedState, StateError, unix_now_s};
 use crate::link::{
     ConnectionState, ControllerLink, LinkError, ModbusConfig, Recorder, RecorderConfig,
     ReplayOptions, ReplaySpeed,
@@ -88,15 +88,30 @@ pub fn baseline_path(data_dir: &std::path::Path, axis: AxisId) -> PathBuf {
 }
 
 /// The file the estimators' state is kept in between sessions on this kind of source
-/// ([`crate::estimators::state`]): one per kind, so a session on the embedded twin does not
-/// overwrite what a session on the machine left.
-pub fn estimator_state_path(data_dir: &std::path::Path, source: &SourceSpec) -> PathBuf {
-    let kind = match source {
-        SourceSpec::Twin { .. } => "twin",
-        SourceSpec::Replay { .. } => "replay",
-        SourceSpec::Serial(_) => "controller",
+/// ([`crate::estimators::state`]), and the clock its frames are on: one file per kind, so a
+/// session on a replay does not overwrite what a session on the machine left. `None` for the
+/// embedded twin, whose program starts every session on a machine at rest at time zero: no
+/// state of an earlier session is its.
+pub fn estimator_state_path(
+    data_dir: &std::path::Path,
+    source: &SourceSpec,
+) -> Option<(PathBuf, StateClock)> {
+    let (kind, clock) = match source {
+        SourceSpec::Twin { .. } => return None,
+        SourceSpec::Replay { .. } => ("replay", StateClock::Continues),
+        SourceSpec::Serial(_) => ("controller", StateClock::Restarts),
     };
-    data_dir.join(format!("estimator-state-{kind}.json"))
+    Some((data_dir.join(format!("estimator-state-{kind}.json")), clock))
+}
+
+/// How a source's time runs from one session to the next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StateClock {
+    /// A recording's time: a replay of its continuation goes on from it.
+    Continues,
+    /// A live link's time, which counts from the link's start: the wall clock tells the time
+    /// between sessions.
+    Restarts,
 }
 
 /// How often the session saves the estimators' state (and once more when it ends): a crash
@@ -235,9 +250,11 @@ impl Session {
                 ),
             },
         };
-        let state_path = estimator_state_path(&config.data_dir, &config.source);
-        let (pending_state, state_note) = match (&pipeline, &config.profile) {
-            (Some(_), Some(profile)) => take_up_saved_state(&state_path, profile, link.schema()),
+        let state_file = estimator_state_path(&config.data_dir, &config.source);
+        let (pending_state, state_note) = match (&pipeline, &config.profile, &state_file) {
+            (Some(_), Some(profile), Some((path, _))) => {
+                take_up_saved_state(path, profile, link.schema())
+            }
             _ => (None, None),
         };
         let mut names = link.schema().names().to_vec();
@@ -278,7 +295,7 @@ impl Session {
             last_time_s: None,
             notes_said: 0,
             pending_state,
-            state_path,
+            state_file,
             last_row: Vec::new(),
             last_row_unix_s: None,
             state_saved_at: Instant::now(),
@@ -387,8 +404,9 @@ struct Worker {
     /// A pipeline that took up the state the last session saved, and that state: it replaces
     /// `pipeline` if the first frame shows the machine where the state left it.
     pending_state: Option<(EstimatorPipeline, SavedState)>,
-    /// Where the estimators' state is saved.
-    state_path: PathBuf,
+    /// Where the estimators' state is saved, and how the source's clock runs between sessions
+    /// (`None`: not saved).
+    state_file: Option<(PathBuf, StateClock)>,
     /// The newest frame, in the link's columns (what a saved state is checked by), and when it
     /// arrived (wall clock, s since 1970).
     last_row: Vec<f64>,
@@ -441,12 +459,15 @@ impl Worker {
                     }
                     self.take_frames(frames);
                 }
-                Wake::Tick => {
-                    next_tick = tokio::time::Instant::now() + TICK;
-                    self.publish_status();
-                    if self.state_saved_at.elapsed() >= SAVE_STATE_EVERY {
-                        self.save_state();
-                    }
+                Wake::Tick => {}
+            }
+            // Also after frames: a source that always has a frame waiting (a replay as fast as
+            // possible) would otherwise never let the tick win the select.
+            if tokio::time::Instant::now() >= next_tick {
+                next_tick = tokio::time::Instant::now() + TICK;
+                self.publish_status();
+                if self.state_saved_at.elapsed() >= SAVE_STATE_EVERY {
+                    self.save_state();
                 }
             }
             if self.updates.is_closed() {
@@ -465,7 +486,16 @@ impl Worker {
         let Some((restored, saved)) = self.pending_state.take() else {
             return;
         };
-        match saved.check_resume(self.link.schema(), first, unix_now_s()) {
+        let clock = match self.state_file.as_ref().map(|(_, clock)| *clock) {
+            Some(StateClock::Restarts) => {
+                unix_now_s().map(|now_unix_s| Clock::Restarted { now_unix_s })
+            }
+            _ => Some(Clock::Continued),
+        };
+        let checked = clock
+            .ok_or(StateError::NoWallClock)
+            .and_then(|clock| saved.check_resume(self.link.schema(), first, clock));
+        match checked {
             Ok(resume) => {
                 let mut restored = restored;
                 restored.carry_on(&resume);
@@ -497,6 +527,9 @@ impl Worker {
     /// crash mid-write leaves the previous one); says a failure once.
     fn save_state(&mut self) {
         self.state_saved_at = Instant::now();
+        let Some((path, _)) = &self.state_file else {
+            return;
+        };
         let Some(mut saved) = self
             .pipeline
             .as_mut()
@@ -505,7 +538,7 @@ impl Worker {
             return;
         };
         saved.frame_unix_s = self.last_row_unix_s;
-        match write_state(&self.state_path, &saved) {
+        match write_state(path, &saved) {
             Ok(()) => self.state_save_failed = false,
             Err(error) if !self.state_save_failed => {
                 self.state_save_failed = true;
@@ -1061,7 +1094,7 @@ fn take_up_saved_state(
             return (None, Some(note));
         }
     };
-    let taken = serde_json::from_str::<SavedState>(&text)
+    let taken = SavedState::from_json(&text)
         .map_err(|e| e.to_string())
         .and_then(|saved| {
             let mut pipeline =
@@ -1081,15 +1114,20 @@ fn take_up_saved_state(
     }
 }
 
-/// Writes a saved state to a file beside `path` and renames it over `path`.
+/// Writes a saved state to a file beside `path` (named for this process, so two HMIs on one
+/// data directory do not write into each other's), makes it durable, and renames it over
+/// `path`: a power cut leaves the old state or the new one, never a part of either.
 fn write_state(path: &std::path::Path, saved: &SavedState) -> Result<(), String> {
     let at = |e: std::io::Error| format!("{}: {e}", path.display());
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(at)?;
     }
     let text = serde_json::to_string(saved).map_err(|e| e.to_string())? + "\n";
-    let partial = path.with_extension("json.partial");
-    std::fs::write(&partial, text).map_err(at)?;
+    let partial = path.with_extension(format!("json.partial-{}", std::process::id()));
+    let mut file = std::fs::File::create(&partial).map_err(at)?;
+    std::io::Write::write_all(&mut file, text.as_bytes())
+        .and_then(|()| file.sync_all())
+        .map_err(at)?;
     std::fs::rename(&partial, path).map_err(at)
 }
 
