@@ -19,8 +19,8 @@ pub struct Args {
     #[arg(long)]
     pub profile: PathBuf,
     /// The recording to estimate over; several files are the pieces of one recording, read as
-    /// one in the order given (the HMI's recorder starts a new piece every hour): the
-    /// estimators carry on from piece to piece.
+    /// one in the order given (the recorder starts a new piece every hour: shift.csv,
+    /// shift-0001.csv, …): the estimators carry on from piece to piece.
     #[arg(long, required = true, num_args = 1..)]
     pub recording: Vec<PathBuf>,
     /// Write the estimates (time plus one column per estimate) to this CSV. An estimate that is
