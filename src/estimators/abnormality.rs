@@ -423,9 +423,7 @@ impl WalkState for BlockAverager {
         walk.value(&mut self.min_rpm);
         walk.value(&mut self.max_rpm);
         walk.flag(&mut self.cutting);
-        let mut samples = self.samples as u64;
-        walk.count(&mut samples);
-        self.samples = samples as usize;
+        walk.count_usize(&mut self.samples);
     }
 }
 
@@ -448,9 +446,7 @@ impl WalkState for TorqueBlock {
         walk.flag(&mut s.cutting);
         walk.value(&mut self.speed_range_rpm.0);
         walk.value(&mut self.speed_range_rpm.1);
-        let mut samples = self.samples as u64;
-        walk.count(&mut samples);
-        self.samples = samples as usize;
+        walk.count_usize(&mut self.samples);
     }
 }
 

@@ -228,6 +228,13 @@ impl<'a> StateWalk<'a> {
         };
     }
 
+    /// Saves or restores a count held as a `usize`.
+    pub fn count_usize(&mut self, n: &mut usize) {
+        let mut wide = *n as u64;
+        self.count(&mut wide);
+        *n = usize::try_from(wide).unwrap_or(usize::MAX);
+    }
+
     /// Saves or restores an optional number (a flag, then the number or NaN).
     pub fn optional(&mut self, x: &mut Option<f64>) {
         let mut present = x.is_some();
