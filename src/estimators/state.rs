@@ -191,11 +191,6 @@ impl<'a> StateWalk<'a> {
         }
     }
 
-    /// True while restoring (an estimator may then clear what does not carry over a break).
-    pub fn is_restoring(&self) -> bool {
-        matches!(self.mode, Mode::Restore { .. })
-    }
-
     /// Saves or restores one number. Restoring past the end leaves it and is counted
     /// ([`Self::finish`] says so).
     pub fn value(&mut self, x: &mut f64) {

@@ -101,11 +101,6 @@ impl RecordingPieces {
         self.reader.schema()
     }
 
-    /// The metadata of the piece being read.
-    pub fn metadata(&self) -> &[(String, String)] {
-        self.reader.metadata()
-    }
-
     /// Reads the next row, from the next piece once one ends. `Ok(false)` after the last.
     pub fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
         loop {
