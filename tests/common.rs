@@ -98,3 +98,26 @@ pub fn in_own_process(test_path: &str) -> bool {
     );
     false
 }
+
+/// The rows of the recording at `path` from `from_s` up to `until_s` (its metadata and header
+/// kept), written to `out`: a recording that starts mid-shift, or a piece of one.
+pub fn rows_between(path: &std::path::Path, out: &std::path::Path, from_s: f64, until_s: f64) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut past_header = false;
+    let kept: String = text
+        .lines()
+        .filter(|line| {
+            let keep = line.starts_with('#')
+                || !past_header
+                || line
+                    .split(',')
+                    .next()
+                    .map(|t| t.parse::<f64>().unwrap())
+                    .is_some_and(|t| t >= from_s && t < until_s);
+            past_header |= line.starts_with("time_s");
+            keep
+        })
+        .map(|line| format!("{line}\n"))
+        .collect();
+    std::fs::write(out, kept).unwrap();
+}

@@ -2472,3 +2472,59 @@ fn the_noise_floor_says_how_much_of_it_is_slow() {
         );
     }
 }
+
+/// The real recording in two pieces (the recorder's hourly files) is compared as the whole
+/// file is, at its own rate and averaged over 10 s blocks: the same report. Pieces out of order
+/// are refused with the file named.
+#[test]
+fn a_real_recording_in_pieces_is_compared_as_one() {
+    let (dir, sim, real) = pair_paths();
+    simulate_to(
+        &sim,
+        "2",
+        "13",
+        &["--noise", "0", "--without", "copper_loss"],
+    );
+    simulate_to(&real, "2", "13", &[]);
+    let (first, second) = (dir.path().join("real-1.csv"), dir.path().join("real-2.csv"));
+    crate::common::rows_between(&real, &first, 0.0, 3600.0);
+    crate::common::rows_between(&real, &second, 3600.0, f64::INFINITY);
+    let target = axis_column(AxisId::X, Quantity::StatorTemp);
+    for average in [None, Some("10")] {
+        let mut extra = vec!["--surrogates", "39", "--alpha", "0.025"];
+        extra.extend(average.iter().flat_map(|a| ["--average", *a]));
+        let whole = discrepancy_json(&sim, &real, &target, &extra);
+        let run = servosight(
+            &[
+                &["discrepancy", "--sim", arg(&sim), "--target", &target][..],
+                &extra[..],
+                &["--json", "-", "--real", arg(&first), arg(&second)],
+            ]
+            .concat(),
+        );
+        assert!(run.status.success(), "{}", stderr(&run));
+        let pieces: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+        assert_eq!(pieces, whole, "{average:?}");
+        // Not two equal failures: the copper heat left out is found in both.
+        assert_eq!(whole["verdict"], "missing_physics", "{whole}");
+        let rows = if average.is_some() { 721 } else { 7201 };
+        assert_eq!(whole["rows"], rows, "{average:?}");
+    }
+    let run = servosight(&[
+        "discrepancy",
+        "--sim",
+        arg(&sim),
+        "--target",
+        &target,
+        "--real",
+        arg(&second),
+        arg(&first),
+    ]);
+    assert!(!run.status.success());
+    let error = stderr(&run);
+    assert!(
+        error.contains(&format!("{}: line", first.display()))
+            && error.contains("give the pieces in the order they were recorded"),
+        "{error}"
+    );
+}

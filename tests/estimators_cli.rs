@@ -2,7 +2,7 @@
 
 use servosight::signal::read_recording;
 
-use crate::common::{arg, servosight, stderr, stdout};
+use crate::common::{arg, rows_between, servosight, stderr, stdout};
 
 fn simulate(dir: &std::path::Path, name: &str, args: &[&str]) -> std::path::PathBuf {
     let path = dir.join(name);
@@ -691,29 +691,6 @@ fn a_dry_shop_with_a_steady_room_calibrates_without_coolant_or_room_terms() {
         "{}",
         stdout(&run)
     );
-}
-
-/// The recording at `path` from `from_s` on (its metadata and header kept), written to `out`:
-/// a recording that starts mid-shift.
-fn rows_between(path: &std::path::Path, out: &std::path::Path, from_s: f64, until_s: f64) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut past_header = false;
-    let kept: String = text
-        .lines()
-        .filter(|line| {
-            let keep = line.starts_with('#')
-                || !past_header
-                || line
-                    .split(',')
-                    .next()
-                    .map(|t| t.parse::<f64>().unwrap())
-                    .is_some_and(|t| t >= from_s && t < until_s);
-            past_header |= line.starts_with("time_s");
-            keep
-        })
-        .map(|line| format!("{line}\n"))
-        .collect();
-    std::fs::write(out, kept).unwrap();
 }
 
 /// A recording that starts mid-shift, on a machine that has run for an hour and a half, reads

@@ -7,7 +7,7 @@ use crate::servosight_cli::{emit_report, out, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::discrepancy::{Options, RowBudget, analyse};
 use servosight::parallel::join_or_resume;
-use servosight::signal::{Recording, RecordingError, RecordingReader};
+use servosight::signal::{Recording, RecordingError, RecordingPieces};
 use servosight::ui::export_png::render_discrepancy;
 use servosight::ui::sim_vs_real::{DiscrepancyOutcome, DiscrepancyRequest};
 use servosight::ui::vm::discrepancy::result_view;
@@ -29,9 +29,11 @@ pub struct Args {
     /// The simulation (CSV v1), e.g. a twin run or an imported FEA export.
     #[arg(long)]
     pub sim: PathBuf,
-    /// The real recording (CSV v1).
-    #[arg(long)]
-    pub real: PathBuf,
+    /// The real recording (CSV v1); several files are the pieces of one recording, read as one
+    /// in the order given (the recorder starts a new piece every hour: shift.csv,
+    /// shift-0001.csv, …).
+    #[arg(long, required = true, num_args = 1..)]
+    pub real: Vec<PathBuf>,
     /// The column to compare (present in both files).
     #[arg(long)]
     pub target: String,
@@ -88,20 +90,17 @@ fn keep_freed_memory_for_reuse() {
     }
 }
 
-/// Reads a recording for the analysis: whole, or averaged over `average` seconds' blocks, and
+/// Reads a recording (or the pieces of one) for the analysis: whole, or averaged over
+/// `average` seconds' blocks, and
 /// never more rows than `budget` allows (at most [`servosight::discrepancy::MAX_ROWS`], fewer where
 /// the memory free would not hold the analysis), so that a recording too long for it is
 /// refused while it is read rather than after it filled the memory.
 fn read_for_analysis(
-    path: &Path,
+    paths: &[PathBuf],
     average: Option<f64>,
     budget: RowBudget,
 ) -> anyhow::Result<Recording> {
-    let reader = RecordingReader::open(path)?;
-    let read = match average {
-        Some(block_s) => reader.read_averaged(block_s, budget.rows),
-        None => reader.read_at_most(budget.rows),
-    };
+    let read = RecordingPieces::open(paths)?.read_observed(budget.rows, average, &mut |_| true);
     let reason = budget.reason();
     read.map_err(|e| match e {
         RecordingError::TooManyRows { block_s: None, .. } => anyhow::anyhow!(
@@ -118,8 +117,11 @@ fn read_for_analysis(
 /// Runs `servosight discrepancy`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     keep_freed_memory_for_reuse();
+    let inputs: Vec<&Path> = std::iter::once(args.sim.as_path())
+        .chain(args.real.iter().map(PathBuf::as_path))
+        .collect();
     refuse_overwriting_inputs(
-        &[&args.sim, &args.real],
+        &inputs,
         &[
             args.json.as_deref(),
             args.plot_data.as_deref(),
@@ -135,7 +137,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // command's time.
     let budget = RowBudget::now();
     let (sim, real) = std::thread::scope(|scope| {
-        let sim = scope.spawn(|| read_for_analysis(&args.sim, args.average, budget));
+        let sim = scope
+            .spawn(|| read_for_analysis(std::slice::from_ref(&args.sim), args.average, budget));
         let real = read_for_analysis(&args.real, args.average, budget);
         (join_or_resume(sim), real)
     });
@@ -166,7 +169,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.plot {
         let request = DiscrepancyRequest {
             sim: args.sim.clone(),
-            real: args.real.clone(),
+            real: PathBuf::from(
+                args.real
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ),
             target: args.target.clone(),
             average_s: args.average,
         };

@@ -128,26 +128,106 @@ impl RecordingPieces {
             let Some(next) = self.paths.get(self.at + 1) else {
                 return Ok(false);
             };
-            let reader = RecordingReader::open(next)?;
-            let (first, now) = (self.reader.schema().names(), reader.schema().names());
-            if first != now {
-                let missing: Vec<&String> = first.iter().filter(|c| !now.contains(c)).collect();
-                let extra: Vec<&String> = now.iter().filter(|c| !first.contains(c)).collect();
-                let difference = if missing.is_empty() && extra.is_empty() {
-                    "the same columns in another order".to_string()
-                } else {
-                    format!("missing {missing:?}, not in the first {extra:?}")
-                };
-                return Err(RecordingError::PieceColumns {
-                    source_name: next.display().to_string(),
-                    first: self.paths[0].display().to_string(),
-                    difference,
-                });
-            }
+            let names = self.reader.schema().names().to_vec();
+            let reader = Self::open_piece(next, &self.paths[0], &names)?;
             self.reader = reader;
             self.at += 1;
             self.rows_in_piece = 0;
         }
+    }
+}
+
+impl RecordingPieces {
+    /// Every remaining piece into one columnar [`Recording`], each read as
+    /// [`RecordingReader::read_observed`] reads a file (whole, or averaged over `block_s`
+    /// blocks, which are anchored at time 0, so a block a piece boundary cuts becomes two rows),
+    /// at most `limit` rows in all, with the same checks as [`Self::read_row`] between pieces.
+    /// `observe` hears each piece's rows read so far. For a reader that has read rows already,
+    /// only the rest of the current piece and the pieces after it are kept.
+    pub fn read_observed(
+        self,
+        limit: usize,
+        block_s: Option<f64>,
+        observe: &mut dyn FnMut(u64) -> bool,
+    ) -> Result<Recording, RecordingError> {
+        let RecordingPieces {
+            paths,
+            mut at,
+            mut reader,
+            mut last,
+            ..
+        } = self;
+        let names = reader.schema().names().to_vec();
+        let schema = reader.schema().clone();
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+        // The first piece's, with what its read adds (how it was averaged).
+        let mut metadata: Option<Vec<(String, String)>> = None;
+        loop {
+            let first_line = reader.lines_before_header + 2;
+            let part = reader.read_observed(limit - columns[0].len(), block_s, observe)?;
+            if let (Some(&time_s), Some((previous_s, piece))) = (part.time().first(), last)
+                && time_s < previous_s
+            {
+                return Err(RecordingError::PieceOutOfOrder(Box::new(PieceOrder {
+                    at: Location {
+                        source: paths[at].display().to_string(),
+                        line: first_line,
+                        column: None,
+                    },
+                    time_s,
+                    previous: paths[piece].display().to_string(),
+                    previous_s,
+                })));
+            }
+            if let Some(&time_s) = part.time().last() {
+                last = Some((time_s, at));
+            }
+            for (column, name) in columns.iter_mut().zip(&names) {
+                column.extend_from_slice(part.column(name)?);
+            }
+            metadata.get_or_insert_with(|| part.metadata().to_vec());
+            let Some(next) = paths.get(at + 1) else {
+                break;
+            };
+            reader = Self::open_piece(next, &paths[0], &names)?;
+            at += 1;
+        }
+        let source = paths
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ");
+        Ok(Recording::from_parts(
+            source,
+            metadata.unwrap_or_default(),
+            schema,
+            columns,
+        ))
+    }
+
+    /// Opens the piece at `path`, which must have the first piece's columns.
+    fn open_piece(
+        path: &std::path::Path,
+        first: &std::path::Path,
+        names: &[String],
+    ) -> Result<RecordingReader<File>, RecordingError> {
+        let reader = RecordingReader::open(path)?;
+        let now = reader.schema().names();
+        if now != names {
+            let missing: Vec<&String> = names.iter().filter(|c| !now.contains(c)).collect();
+            let extra: Vec<&String> = now.iter().filter(|c| !names.contains(c)).collect();
+            let difference = if missing.is_empty() && extra.is_empty() {
+                "the same columns in another order".to_string()
+            } else {
+                format!("missing {missing:?}, not in the first {extra:?}")
+            };
+            return Err(RecordingError::PieceColumns {
+                source_name: path.display().to_string(),
+                first: first.display().to_string(),
+                difference,
+            });
+        }
+        Ok(reader)
     }
 }
 
