@@ -182,10 +182,16 @@ impl RecordingPieces {
             if let Some(&time_s) = part.time().last() {
                 last = Some((time_s, at));
             }
-            for (column, name) in columns.iter_mut().zip(&names) {
-                column.extend_from_slice(part.column(name)?);
+            let (part_metadata, part_columns) = part.into_metadata_and_columns();
+            if metadata.is_none() {
+                // The first piece's columns are moved, not copied: one piece, one copy.
+                metadata = Some(part_metadata);
+                columns = part_columns;
+            } else {
+                for (column, part) in columns.iter_mut().zip(&part_columns) {
+                    column.extend_from_slice(part);
+                }
             }
-            metadata.get_or_insert_with(|| part.metadata().to_vec());
             let Some(next) = paths.get(at + 1) else {
                 break;
             };

@@ -187,6 +187,11 @@ impl Recording {
         }
     }
 
+    /// Its metadata and columns, in the schema's order, moved out (no copy).
+    pub(crate) fn into_metadata_and_columns(self) -> (Vec<(String, String)>, Vec<Vec<f64>>) {
+        (self.metadata, self.columns)
+    }
+
     pub(crate) fn from_parts(
         source: String,
         metadata: Vec<(String, String)>,
