@@ -980,4 +980,127 @@ mod tests {
             .unwrap();
         assert_eq!(back, rec);
     }
+
+    /// A recording cut into pieces anywhere (a piece may be empty) reads as the whole file does,
+    /// row by row and into one recording, and, cut on block boundaries, averaged as it does.
+    mod pieces {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// Writes `rows` (time, x) cut before each index of `cuts` into files `name-k.csv` in
+        /// `dir`.
+        fn write_pieces(
+            dir: &std::path::Path,
+            name: &str,
+            rows: &[(f64, f64)],
+            cuts: &[usize],
+        ) -> Vec<std::path::PathBuf> {
+            let mut bounds = vec![0];
+            bounds.extend(cuts.iter().copied());
+            bounds.push(rows.len());
+            bounds
+                .windows(2)
+                .enumerate()
+                .map(|(k, w)| {
+                    let path = dir.join(format!("{name}-{k}.csv"));
+                    let mut text = format!("# piece: {k}\ntime_s,x\n");
+                    for (t, x) in &rows[w[0]..w[1]] {
+                        text.push_str(&format!("{t},{x}\n"));
+                    }
+                    std::fs::write(&path, text).unwrap();
+                    path
+                })
+                .collect()
+        }
+
+        proptest! {
+            #![proptest_config(ProptestConfig::with_cases(64))]
+            #[test]
+            fn pieces_read_as_the_whole(
+                n in 1usize..200,
+                cut_points in proptest::collection::vec(0.0f64..1.0, 0..5),
+                seed in 0u64..1000,
+            ) {
+                let rows: Vec<(f64, f64)> = (0..n)
+                    .map(|i| (i as f64 * 0.5, ((i as u64 * 7919 + seed) % 101) as f64))
+                    .collect();
+                let mut cuts: Vec<usize> =
+                    cut_points.iter().map(|c| (c * n as f64) as usize).collect();
+                cuts.sort_unstable();
+                let dir = tempfile::tempdir().unwrap();
+                let paths = write_pieces(dir.path(), "piece", &rows, &cuts);
+                let whole = write_pieces(dir.path(), "whole", &rows, &[]).remove(0);
+                let mut pieces = RecordingPieces::open(&paths).unwrap();
+                let mut row = Vec::new();
+                let mut read = Vec::new();
+                while pieces.read_row(&mut row).unwrap() {
+                    read.push((row[0], row[1]));
+                }
+                prop_assert_eq!(&read, &rows);
+                let joined = RecordingPieces::open(&paths)
+                    .unwrap()
+                    .read_observed(usize::MAX, None, &mut |_| true)
+                    .unwrap();
+                let alone = RecordingReader::open(&whole).unwrap().read_to_end().unwrap();
+                prop_assert_eq!(joined.time(), alone.time());
+                prop_assert_eq!(joined.column("x").unwrap(), alone.column("x").unwrap());
+                // Cut on whole seconds, 1 s blocks see the same rows either way.
+                let on_blocks: Vec<usize> = cuts.iter().map(|c| c - c % 2).collect();
+                let paths = write_pieces(dir.path(), "on-blocks", &rows, &on_blocks);
+                let averaged = RecordingPieces::open(&paths)
+                    .unwrap()
+                    .read_observed(usize::MAX, Some(1.0), &mut |_| true)
+                    .unwrap();
+                let alone = RecordingReader::open(&whole).unwrap().read_averaged(1.0, usize::MAX).unwrap();
+                prop_assert_eq!(averaged.time(), alone.time());
+                prop_assert_eq!(averaged.column("x").unwrap(), alone.column("x").unwrap());
+                prop_assert_eq!(averaged.metadata_value(AVERAGED_OVER_S), Some("1"));
+            }
+        }
+
+        /// Pieces out of order, and a piece with other columns, are refused where they go wrong;
+        /// a row budget counts the rows of every piece.
+        #[test]
+        fn pieces_out_of_order_or_with_other_columns_are_refused() {
+            let dir = tempfile::tempdir().unwrap();
+            let rows: Vec<(f64, f64)> = (0..10).map(|i| (i as f64, i as f64)).collect();
+            let paths = write_pieces(dir.path(), "piece", &rows, &[5]);
+            let reversed = [paths[1].clone(), paths[0].clone()];
+            let error = RecordingPieces::open(&reversed)
+                .unwrap()
+                .read_observed(usize::MAX, None, &mut |_| true)
+                .unwrap_err();
+            assert_eq!(
+                error.to_string(),
+                format!(
+                    "{}: line 3: this piece starts at 0 s, before 9 s where {} ends: give the pieces in the order they were recorded",
+                    paths[0].display(),
+                    paths[1].display()
+                )
+            );
+            let other = dir.path().join("other.csv");
+            std::fs::write(&other, "time_s,y\n20,1\n").unwrap();
+            let mixed = [paths[0].clone(), other.clone()];
+            let mut pieces = RecordingPieces::open(&mixed).unwrap();
+            let mut row = Vec::new();
+            for _ in 0..5 {
+                assert!(pieces.read_row(&mut row).unwrap());
+            }
+            let error = pieces.read_row(&mut row).unwrap_err();
+            assert!(
+                error
+                    .to_string()
+                    .contains("missing [\"x\"], not in the first [\"y\"]"),
+                "{error}"
+            );
+            let error = RecordingPieces::open(&paths)
+                .unwrap()
+                .read_observed(7, None, &mut |_| true)
+                .unwrap_err();
+            assert!(
+                matches!(error, RecordingError::TooManyRows { .. }),
+                "{error}"
+            );
+        }
+    }
 }
