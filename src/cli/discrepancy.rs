@@ -169,13 +169,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.plot {
         let request = DiscrepancyRequest {
             sim: args.sim.clone(),
-            real: PathBuf::from(
-                args.real
-                    .iter()
-                    .map(|p| p.display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            ),
+            real: PathBuf::from(RecordingPieces::name(&args.real)),
             target: args.target.clone(),
             average_s: args.average,
         };

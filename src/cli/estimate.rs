@@ -83,15 +83,6 @@ struct AbnormalityRow {
     reason: String,
 }
 
-/// The recording's files as the user gave them, comma-separated.
-fn recording_names(paths: &[PathBuf]) -> String {
-    paths
-        .iter()
-        .map(|p| p.display().to_string())
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
 /// The columns of the estimates file: time, then each estimate, followed by its
 /// `<column>_valid` where it was unknown in some row. The format has no empty cells, so such
 /// an estimate (the abnormality score before enough steady running) is written as 0 where
@@ -122,7 +113,7 @@ fn write_estimates(
     let metadata = [
         (
             "estimated_from".to_string(),
-            recording_names(&args.recording),
+            RecordingPieces::name(&args.recording),
         ),
         ("profile".to_string(), args.profile.display().to_string()),
     ];
@@ -142,7 +133,7 @@ fn write_estimates(
             .position(|(v, &gappy)| !v.is_finite() && !gappy)
         {
             return Err(servosight::signal::RecordingError::Io {
-                source_name: recording_names(&args.recording),
+                source_name: RecordingPieces::name(&args.recording),
                 error: std::io::Error::other(format!(
                     "the recording changed while it was estimated: `{}` is unknown at {time} s \
                      on the second pass, known on the first",
@@ -187,7 +178,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         series.rows > 0,
         "{} has a header but no data rows: nothing to estimate",
-        recording_names(&args.recording)
+        RecordingPieces::name(&args.recording)
     );
     let rows = &series.accuracy;
     let finite = |v: f64| v.is_finite().then_some(v);

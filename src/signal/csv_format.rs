@@ -101,25 +101,23 @@ impl RecordingPieces {
         self.reader.schema()
     }
 
+    /// The pieces' files as given, comma-separated: how the recording is named in messages.
+    pub fn name(paths: &[std::path::PathBuf]) -> String {
+        paths
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// Reads the next row, from the next piece once one ends. `Ok(false)` after the last.
     pub fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
         loop {
             if self.reader.read_row(out)? {
                 let time_s = out[0];
-                if self.rows_in_piece == 0
-                    && let Some((previous_s, piece)) = self.last
-                    && time_s < previous_s
-                {
-                    return Err(RecordingError::PieceOutOfOrder(Box::new(PieceOrder {
-                        at: Location {
-                            source: self.paths[self.at].display().to_string(),
-                            line: self.reader.current_line(),
-                            column: None,
-                        },
-                        time_s,
-                        previous: self.paths[piece].display().to_string(),
-                        previous_s,
-                    })));
+                if self.rows_in_piece == 0 {
+                    let line = self.reader.current_line();
+                    in_order(&self.paths, self.at, line, time_s, self.last)?;
                 }
                 self.rows_in_piece += 1;
                 self.last = Some((time_s, self.at));
@@ -128,16 +126,12 @@ impl RecordingPieces {
             let Some(next) = self.paths.get(self.at + 1) else {
                 return Ok(false);
             };
-            let names = self.reader.schema().names().to_vec();
-            let reader = Self::open_piece(next, &self.paths[0], &names)?;
-            self.reader = reader;
+            self.reader = Self::open_piece(next, &self.paths[0], self.reader.schema().names())?;
             self.at += 1;
             self.rows_in_piece = 0;
         }
     }
-}
 
-impl RecordingPieces {
     /// Every remaining piece into one columnar [`Recording`], each read as
     /// [`RecordingReader::read_observed`] reads a file (whole, or averaged over `block_s`
     /// blocks, which are anchored at time 0, so a block a piece boundary cuts becomes two rows),
@@ -157,27 +151,15 @@ impl RecordingPieces {
             mut last,
             ..
         } = self;
-        let names = reader.schema().names().to_vec();
         let schema = reader.schema().clone();
-        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); schema.len()];
         // The first piece's, with what its read adds (how it was averaged).
         let mut metadata: Option<Vec<(String, String)>> = None;
         loop {
             let first_line = reader.lines_before_header + 2;
             let part = reader.read_observed(limit - columns[0].len(), block_s, observe)?;
-            if let (Some(&time_s), Some((previous_s, piece))) = (part.time().first(), last)
-                && time_s < previous_s
-            {
-                return Err(RecordingError::PieceOutOfOrder(Box::new(PieceOrder {
-                    at: Location {
-                        source: paths[at].display().to_string(),
-                        line: first_line,
-                        column: None,
-                    },
-                    time_s,
-                    previous: paths[piece].display().to_string(),
-                    previous_s,
-                })));
+            if let Some(&time_s) = part.time().first() {
+                in_order(&paths, at, first_line, time_s, last)?;
             }
             if let Some(&time_s) = part.time().last() {
                 last = Some((time_s, at));
@@ -195,16 +177,11 @@ impl RecordingPieces {
             let Some(next) = paths.get(at + 1) else {
                 break;
             };
-            reader = Self::open_piece(next, &paths[0], &names)?;
+            reader = Self::open_piece(next, &paths[0], schema.names())?;
             at += 1;
         }
-        let source = paths
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ");
         Ok(Recording::from_parts(
-            source,
+            Self::name(&paths),
             metadata.unwrap_or_default(),
             schema,
             columns,
@@ -234,6 +211,32 @@ impl RecordingPieces {
             });
         }
         Ok(reader)
+    }
+}
+
+/// Checks that piece `at`'s first row, at `time_s` on `line`, does not start before `last`
+/// (the previous row's time and piece).
+fn in_order(
+    paths: &[std::path::PathBuf],
+    at: usize,
+    line: u64,
+    time_s: f64,
+    last: Option<(f64, usize)>,
+) -> Result<(), RecordingError> {
+    match last {
+        Some((previous_s, piece)) if time_s < previous_s => {
+            Err(RecordingError::PieceOutOfOrder(Box::new(PieceOrder {
+                at: Location {
+                    source: paths[at].display().to_string(),
+                    line,
+                    column: None,
+                },
+                time_s,
+                previous: paths[piece].display().to_string(),
+                previous_s,
+            })))
+        }
+        _ => Ok(()),
     }
 }
 
