@@ -3,12 +3,14 @@
 pub mod channel;
 pub mod csv_format;
 pub mod error;
+pub mod pieces;
 pub mod recording;
 
 pub use channel::{AxisId, Channel, Quantity, axis_column, reference_column};
 pub use csv_format::{
-    AVERAGED_OVER_S, RecordingPieces, RecordingReader, RecordingWriter, RowSource, read_recording,
-    write_recording, write_recording_to,
+    AVERAGED_OVER_S, RecordingReader, RecordingWriter, RowSource, read_recording, write_recording,
+    write_recording_to,
 };
 pub use error::{Location, RecordingError};
+pub use pieces::RecordingPieces;
 pub use recording::{Recording, Schema};

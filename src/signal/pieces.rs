@@ -1,0 +1,355 @@
+//! The pieces of one recording read as one: the files a recorder rotates a long recording into.
+
+use std::fs::File;
+use std::io;
+
+use super::csv_format::{RecordingReader, RowSource};
+use super::error::{Location, PieceOrder, RecordingError};
+use super::recording::{Recording, Schema};
+
+/// The pieces of one recording read as one, in the order given: the files a recorder rotates
+/// (every hour by default, each a whole recording with its own header). Every piece must have
+/// the first one's columns, and none may start before the one before it ends; each piece's
+/// rows are checked as [`RecordingReader`] checks them. Opened one at a time, so a shift of
+/// 1 kHz pieces streams in constant memory.
+pub struct RecordingPieces {
+    paths: Vec<std::path::PathBuf>,
+    /// The piece being read (its index in `paths`).
+    at: usize,
+    reader: RecordingReader<File>,
+    /// The last row's time and the piece it came from.
+    last: Option<(f64, usize)>,
+    /// The rows read in the current piece.
+    rows_in_piece: u64,
+}
+
+impl RecordingPieces {
+    /// Opens the first piece for reading. Every later piece's header is read now too, so a
+    /// missing piece, or one with other columns, is refused before a row is read (an hour into
+    /// a replay is too late to learn the third file was never copied); each is opened again
+    /// when its turn comes. At least one path is needed.
+    pub fn open(paths: &[std::path::PathBuf]) -> Result<Self, RecordingError> {
+        let first = paths.first().ok_or_else(|| RecordingError::Io {
+            source_name: "the recording".into(),
+            error: io::Error::other("no recording file given"),
+        })?;
+        let reader = RecordingReader::open(first)?;
+        for later in &paths[1..] {
+            Self::open_piece(later, first, reader.schema().names())?;
+        }
+        Ok(RecordingPieces {
+            reader,
+            paths: paths.to_vec(),
+            at: 0,
+            last: None,
+            rows_in_piece: 0,
+        })
+    }
+
+    /// The columns (the first piece's, which every piece has).
+    pub fn schema(&self) -> &Schema {
+        self.reader.schema()
+    }
+
+    /// The pieces' files as given, comma-separated: how the recording is named in messages.
+    pub fn name(paths: &[std::path::PathBuf]) -> String {
+        paths
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The pieces named in a line: the file, or the first and last piece and how many there
+    /// are (a shift's eight pieces would not fit in a status bar).
+    pub fn short_name(paths: &[std::path::PathBuf]) -> String {
+        match paths {
+            [first, .., last] => format!(
+                "{} … {} ({} pieces)",
+                first.display(),
+                last.display(),
+                paths.len()
+            ),
+            _ => Self::name(paths),
+        }
+    }
+
+    /// Reads the next row, from the next piece once one ends. `Ok(false)` after the last.
+    pub fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
+        loop {
+            if self.reader.read_row(out)? {
+                let time_s = out[0];
+                if self.rows_in_piece == 0 {
+                    let line = self.reader.current_line();
+                    in_order(&self.paths, self.at, line, time_s, self.last)?;
+                }
+                self.rows_in_piece += 1;
+                self.last = Some((time_s, self.at));
+                return Ok(true);
+            }
+            let Some(next) = self.paths.get(self.at + 1) else {
+                return Ok(false);
+            };
+            self.reader = Self::open_piece(next, &self.paths[0], self.reader.schema().names())?;
+            self.at += 1;
+            self.rows_in_piece = 0;
+        }
+    }
+
+    /// Every remaining piece into one columnar [`Recording`], each read as
+    /// [`RecordingReader::read_observed`] reads a file (whole, or averaged over `block_s`
+    /// blocks, which are anchored at time 0, so a block a piece boundary cuts becomes two rows),
+    /// at most `limit` rows in all, with the same checks as [`Self::read_row`] between pieces.
+    /// `observe` hears each piece's rows read so far. For a reader that has read rows already,
+    /// only the rest of the current piece and the pieces after it are kept.
+    pub fn read_observed(
+        self,
+        limit: usize,
+        block_s: Option<f64>,
+        observe: &mut dyn FnMut(u64) -> bool,
+    ) -> Result<Recording, RecordingError> {
+        let RecordingPieces {
+            paths,
+            mut at,
+            mut reader,
+            mut last,
+            ..
+        } = self;
+        let schema = reader.schema().clone();
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); schema.len()];
+        // The first piece's, with what its read adds (how it was averaged).
+        let mut metadata: Option<Vec<(String, String)>> = None;
+        loop {
+            let first_line = reader.lines_before_header + 2;
+            let part = reader.read_observed(limit - columns[0].len(), block_s, observe)?;
+            if let Some(&time_s) = part.time().first() {
+                in_order(&paths, at, first_line, time_s, last)?;
+            }
+            if let Some(&time_s) = part.time().last() {
+                last = Some((time_s, at));
+            }
+            let (part_metadata, part_columns) = part.into_metadata_and_columns();
+            if metadata.is_none() {
+                // The first piece's columns are moved, not copied: one piece, one copy.
+                metadata = Some(part_metadata);
+                columns = part_columns;
+            } else {
+                for (column, part) in columns.iter_mut().zip(&part_columns) {
+                    column.extend_from_slice(part);
+                }
+            }
+            let Some(next) = paths.get(at + 1) else {
+                break;
+            };
+            reader = Self::open_piece(next, &paths[0], schema.names())?;
+            at += 1;
+        }
+        Ok(Recording::from_parts(
+            Self::name(&paths),
+            metadata.unwrap_or_default(),
+            schema,
+            columns,
+        ))
+    }
+
+    /// Opens the piece at `path`, which must have the first piece's columns.
+    fn open_piece(
+        path: &std::path::Path,
+        first: &std::path::Path,
+        names: &[String],
+    ) -> Result<RecordingReader<File>, RecordingError> {
+        let reader = RecordingReader::open(path)?;
+        let now = reader.schema().names();
+        if now != names {
+            let missing: Vec<&String> = names.iter().filter(|c| !now.contains(c)).collect();
+            let extra: Vec<&String> = now.iter().filter(|c| !names.contains(c)).collect();
+            let difference = if missing.is_empty() && extra.is_empty() {
+                "the same columns in another order".to_string()
+            } else {
+                format!("missing {missing:?}, not in the first {extra:?}")
+            };
+            return Err(RecordingError::PieceColumns {
+                source_name: path.display().to_string(),
+                first: first.display().to_string(),
+                difference,
+            });
+        }
+        Ok(reader)
+    }
+}
+
+/// Checks that piece `at`'s first row, at `time_s` on `line`, does not start before `last`
+/// (the previous row's time and piece).
+fn in_order(
+    paths: &[std::path::PathBuf],
+    at: usize,
+    line: u64,
+    time_s: f64,
+    last: Option<(f64, usize)>,
+) -> Result<(), RecordingError> {
+    match last {
+        Some((previous_s, piece)) if time_s < previous_s => {
+            Err(RecordingError::PieceOutOfOrder(Box::new(PieceOrder {
+                at: Location {
+                    source: paths[at].display().to_string(),
+                    line,
+                    column: None,
+                },
+                time_s,
+                previous: paths[piece].display().to_string(),
+                previous_s,
+            })))
+        }
+        _ => Ok(()),
+    }
+}
+
+impl RowSource for RecordingPieces {
+    fn schema(&self) -> &Schema {
+        RecordingPieces::schema(self)
+    }
+
+    fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
+        RecordingPieces::read_row(self, out)
+    }
+}
+
+/// A recording cut into pieces anywhere (a piece may be empty) reads as the whole file does,
+/// row by row and into one recording, and, cut on block boundaries, averaged as it does.
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::signal::AVERAGED_OVER_S;
+    use proptest::prelude::*;
+
+    /// Writes `rows` (time, x) cut before each index of `cuts` into files `name-k.csv` in
+    /// `dir`.
+    fn write_pieces(
+        dir: &std::path::Path,
+        name: &str,
+        rows: &[(f64, f64)],
+        cuts: &[usize],
+    ) -> Vec<std::path::PathBuf> {
+        let mut bounds = vec![0];
+        bounds.extend(cuts.iter().copied());
+        bounds.push(rows.len());
+        bounds
+            .windows(2)
+            .enumerate()
+            .map(|(k, w)| {
+                let path = dir.join(format!("{name}-{k}.csv"));
+                let mut text = format!("# piece: {k}\ntime_s,x\n");
+                for (t, x) in &rows[w[0]..w[1]] {
+                    text.push_str(&format!("{t},{x}\n"));
+                }
+                std::fs::write(&path, text).unwrap();
+                path
+            })
+            .collect()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn pieces_read_as_the_whole(
+            n in 1usize..200,
+            cut_points in proptest::collection::vec(0.0f64..1.0, 0..5),
+            seed in 0u64..1000,
+        ) {
+            let rows: Vec<(f64, f64)> = (0..n)
+                .map(|i| (i as f64 * 0.5, ((i as u64 * 7919 + seed) % 101) as f64))
+                .collect();
+            let mut cuts: Vec<usize> =
+                cut_points.iter().map(|c| (c * n as f64) as usize).collect();
+            cuts.sort_unstable();
+            let dir = tempfile::tempdir().unwrap();
+            let paths = write_pieces(dir.path(), "piece", &rows, &cuts);
+            let whole = write_pieces(dir.path(), "whole", &rows, &[]).remove(0);
+            let mut pieces = RecordingPieces::open(&paths).unwrap();
+            let mut row = Vec::new();
+            let mut read = Vec::new();
+            while pieces.read_row(&mut row).unwrap() {
+                read.push((row[0], row[1]));
+            }
+            prop_assert_eq!(&read, &rows);
+            let joined = RecordingPieces::open(&paths)
+                .unwrap()
+                .read_observed(usize::MAX, None, &mut |_| true)
+                .unwrap();
+            let alone = RecordingReader::open(&whole).unwrap().read_to_end().unwrap();
+            prop_assert_eq!(joined.time(), alone.time());
+            prop_assert_eq!(joined.column("x").unwrap(), alone.column("x").unwrap());
+            // Cut on whole seconds, 1 s blocks see the same rows either way.
+            let on_blocks: Vec<usize> = cuts.iter().map(|c| c - c % 2).collect();
+            let paths = write_pieces(dir.path(), "on-blocks", &rows, &on_blocks);
+            let averaged = RecordingPieces::open(&paths)
+                .unwrap()
+                .read_observed(usize::MAX, Some(1.0), &mut |_| true)
+                .unwrap();
+            let alone = RecordingReader::open(&whole).unwrap().read_averaged(1.0, usize::MAX).unwrap();
+            prop_assert_eq!(averaged.time(), alone.time());
+            prop_assert_eq!(averaged.column("x").unwrap(), alone.column("x").unwrap());
+            prop_assert_eq!(averaged.metadata_value(AVERAGED_OVER_S), Some("1"));
+        }
+    }
+
+    /// Pieces out of order are refused where they go wrong, a missing piece or one with
+    /// other columns as the pieces are opened (and at its turn, if it changed since); a row
+    /// budget counts the rows of every piece.
+    #[test]
+    fn pieces_out_of_order_or_with_other_columns_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let rows: Vec<(f64, f64)> = (0..10).map(|i| (i as f64, i as f64)).collect();
+        let paths = write_pieces(dir.path(), "piece", &rows, &[5]);
+        let reversed = [paths[1].clone(), paths[0].clone()];
+        let error = RecordingPieces::open(&reversed)
+            .unwrap()
+            .read_observed(usize::MAX, None, &mut |_| true)
+            .unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            format!(
+                "{}: line 3: this piece starts at 0 s, before 9 s where {} ends: give the pieces in the order they were recorded",
+                paths[0].display(),
+                paths[1].display()
+            )
+        );
+        let other = dir.path().join("other.csv");
+        std::fs::write(&other, "time_s,y\n20,1\n").unwrap();
+        let mixed = [paths[0].clone(), other.clone()];
+        let error = RecordingPieces::open(&mixed)
+            .err()
+            .expect("refused at open");
+        assert!(
+            error
+                .to_string()
+                .contains("missing [\"x\"], not in the first [\"y\"]"),
+            "{error}"
+        );
+        let error = RecordingPieces::open(&paths)
+            .unwrap()
+            .read_observed(7, None, &mut |_| true)
+            .unwrap_err();
+        assert!(
+            matches!(error, RecordingError::TooManyRows { .. }),
+            "{error}"
+        );
+        // A piece that gets other columns after the open is refused at its turn.
+        let mut pieces = RecordingPieces::open(&paths).unwrap();
+        std::fs::copy(&other, &paths[1]).unwrap();
+        let mut row = Vec::new();
+        for _ in 0..5 {
+            assert!(pieces.read_row(&mut row).unwrap());
+        }
+        let error = pieces.read_row(&mut row).unwrap_err();
+        assert!(
+            matches!(error, RecordingError::PieceColumns { .. }),
+            "{error}"
+        );
+        let missing = [paths[0].clone(), dir.path().join("never-copied.csv")];
+        let error = RecordingPieces::open(&missing)
+            .err()
+            .expect("refused at open");
+        assert!(error.to_string().contains("never-copied.csv"), "{error}");
+    }
+}
