@@ -39,7 +39,8 @@ fn replay(c: &mut Criterion) {
                 speed: ReplaySpeed::AsFastAsPossible,
                 ..ReplayOptions::default()
             };
-            let mut link = ControllerLink::replay(&path, options).expect("the replay opens");
+            let mut link = ControllerLink::replay(std::slice::from_ref(&path), options)
+                .expect("the replay opens");
             let mut received = 0;
             while received < ROWS {
                 match link.try_next_frame() {

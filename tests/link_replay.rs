@@ -43,7 +43,7 @@ fn as_fast_as_possible_delivers_every_row_in_order_then_ends() {
         speed: ReplaySpeed::AsFastAsPossible,
         ..ReplayOptions::default()
     };
-    let mut link = ControllerLink::replay(&path, options).unwrap();
+    let mut link = ControllerLink::replay(std::slice::from_ref(&path), options).unwrap();
     assert_eq!(link.schema().names(), ["time_s", "X.speed_rpm"]);
     let frames = collect(&mut link, |f| f.len() == 5000, Duration::from_secs(20));
     assert_eq!(frames.len(), 5000);
@@ -66,7 +66,7 @@ fn real_time_and_faster_replays_keep_the_recorded_pace() {
             ..ReplayOptions::default()
         };
         let started = Instant::now();
-        let mut link = ControllerLink::replay(&path, options).unwrap();
+        let mut link = ControllerLink::replay(std::slice::from_ref(&path), options).unwrap();
         let frames = collect(&mut link, |f| f.len() == 101, Duration::from_secs(5));
         let took = started.elapsed().as_secs_f64();
         assert_eq!(frames.len(), 101);
@@ -87,7 +87,7 @@ fn pause_goes_stale_and_seek_jumps() {
         paused: false,
         stale_after: Duration::from_millis(200),
     };
-    let mut link = ControllerLink::replay(&path, options).unwrap();
+    let mut link = ControllerLink::replay(std::slice::from_ref(&path), options).unwrap();
     let frames = collect(&mut link, |f| f.len() >= 10, Duration::from_secs(2));
     assert_eq!(link.status().state, ConnectionState::Connected);
     link.set_paused(true);
@@ -117,12 +117,13 @@ fn a_replay_has_no_controller_to_write_to() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("r.csv");
     write_recording(&path, 10);
-    let link = ControllerLink::replay(&path, ReplayOptions::default()).unwrap();
+    let link =
+        ControllerLink::replay(std::slice::from_ref(&path), ReplayOptions::default()).unwrap();
     assert!(matches!(
         link.read_compensation().wait(),
         Err(LinkError::Unsupported(_))
     ));
-    let missing = ControllerLink::replay(&dir.path().join("nope.csv"), ReplayOptions::default());
+    let missing = ControllerLink::replay(&[dir.path().join("nope.csv")], ReplayOptions::default());
     assert!(matches!(missing, Err(LinkError::Recording(_))));
 }
 
@@ -218,7 +219,8 @@ fn every_link_schema_carries_the_depth_of_cut_so_abnormality_is_scored() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("old.csv");
     write_recording_without_cut_depth(&path);
-    let link = ControllerLink::replay(&path, ReplayOptions::default()).unwrap();
+    let link =
+        ControllerLink::replay(std::slice::from_ref(&path), ReplayOptions::default()).unwrap();
     assert!(link.schema().index_of(CUT_DEPTH).is_none());
     let (columns, notes) = abnormality_columns(link.schema());
     assert!(columns.is_empty(), "{columns:?}");
@@ -355,7 +357,7 @@ fn the_hmi_session_says_why_a_replay_has_no_abnormality_score() {
     let mut session = twin_profile_session(
         dir.path(),
         SourceSpec::Replay {
-            path: path.clone(),
+            pieces: vec![path.clone()],
             options: ReplayOptions::default(),
         },
     );
@@ -407,7 +409,7 @@ fn the_hmi_session_says_when_it_started_on_a_warm_machine() {
     let mut session = twin_profile_session(
         dir.path(),
         SourceSpec::Replay {
-            path,
+            pieces: vec![path],
             options: ReplayOptions::default(),
         },
     );
@@ -436,7 +438,7 @@ fn the_hmi_session_says_where_the_spindle_elongation_counts_from() {
     let mut session = twin_profile_session(
         dir.path(),
         SourceSpec::Replay {
-            path,
+            pieces: vec![path],
             options: ReplayOptions {
                 speed: ReplaySpeed::Factor(10.0),
                 ..ReplayOptions::default()
@@ -551,7 +553,7 @@ fn a_restarted_hmi_session_carries_its_estimators_on_from_where_the_last_one_lef
     write_rows(&first, &recording, 0..closed_at);
     write_rows(&second, &recording, opened_at..end);
     let replay = |path: &Path| SourceSpec::Replay {
-        path: path.to_path_buf(),
+        pieces: vec![path.to_path_buf()],
         options: ReplayOptions {
             speed: ReplaySpeed::AsFastAsPossible,
             ..ReplayOptions::default()
@@ -615,7 +617,7 @@ fn a_damaged_estimator_state_file_is_named_and_the_estimators_start_afresh() {
     let path = dir.path().join("warm.csv");
     write_warm_replay(&path, 5, "X.stator_temp_C", 24.0);
     let source = SourceSpec::Replay {
-        path,
+        pieces: vec![path],
         options: ReplayOptions::default(),
     };
     let (state, _) = estimator_state_path(&dir.path().join("data"), &source).unwrap();
@@ -638,5 +640,85 @@ fn a_damaged_estimator_state_file_is_named_and_the_estimators_start_afresh() {
             .iter()
             .any(|e| e.contains("the machine was warm at the first frame")),
         "{events:?}"
+    );
+}
+
+/// Rows `0..rows` of [`write_recording`]'s recording cut at `starts` into pieces named as the
+/// recorder names them (`r.csv`, `r-0001.csv`, …), each a whole recording with its header.
+fn write_pieces(dir: &Path, rows: usize, starts: &[usize]) -> Vec<std::path::PathBuf> {
+    let ends = starts.iter().skip(1).copied().chain([rows]);
+    starts
+        .iter()
+        .zip(ends)
+        .enumerate()
+        .map(|(k, (&start, end))| {
+            let name = match k {
+                0 => "r.csv".to_string(),
+                k => format!("r-{k:04}.csv"),
+            };
+            let mut text = String::from("# machine: replay-test\ntime_s,X.speed_rpm\n");
+            for i in start..end {
+                text.push_str(&format!("{},{}\n", i as f64 / 100.0, i));
+            }
+            let path = dir.join(name);
+            std::fs::write(&path, text).unwrap();
+            path
+        })
+        .collect()
+}
+
+/// The pieces a recorder rotated a recording into replay as one: every row in order across
+/// them, a seek into a later piece and back into the first, and pieces given out of order end
+/// the replay with the piece named, after every row before it was delivered.
+#[test]
+fn the_pieces_of_a_recording_replay_as_one_and_a_seek_reaches_any_piece() {
+    let dir = tempfile::tempdir().unwrap();
+    let pieces = write_pieces(dir.path(), 5000, &[0, 1700, 3400]);
+    let fast = ReplayOptions {
+        speed: ReplaySpeed::AsFastAsPossible,
+        ..ReplayOptions::default()
+    };
+    let mut link = ControllerLink::replay(&pieces, fast).unwrap();
+    let frames = collect(&mut link, |f| f.len() == 5000, Duration::from_secs(20));
+    assert_eq!(frames.len(), 5000);
+    assert!(frames.iter().enumerate().all(|(i, f)| f.row[1] == i as f64));
+    std::thread::sleep(Duration::from_millis(50));
+    let status = link.status();
+    assert_eq!(status.last_error.as_deref(), Some("end of recording"));
+    let named = format!(
+        "replay of {} … {} (3 pieces)",
+        pieces[0].display(),
+        pieces[2].display()
+    );
+    assert_eq!(status.source, named);
+
+    let paused = ReplayOptions {
+        speed: ReplaySpeed::Factor(1.0),
+        paused: true,
+        ..ReplayOptions::default()
+    };
+    let mut link = ControllerLink::replay(&pieces, paused).unwrap();
+    for target_s in [41.0, 3.0] {
+        link.set_paused(true);
+        std::thread::sleep(Duration::from_millis(50));
+        let _ = collect(&mut link, |_| false, Duration::from_millis(20));
+        link.seek(target_s);
+        link.set_paused(false);
+        let after = collect(&mut link, |f| !f.is_empty(), Duration::from_secs(2));
+        assert_eq!(after[0].row[0], target_s, "first frame after the seek");
+    }
+
+    let out_of_order = [pieces[0].clone(), pieces[2].clone(), pieces[1].clone()];
+    let mut link = ControllerLink::replay(&out_of_order, fast).unwrap();
+    let frames = collect(&mut link, |_| false, Duration::from_millis(500));
+    assert_eq!(frames.len(), 1700 + 1600, "the first two pieces, every row");
+    let status = link.status();
+    assert_eq!(status.state, ConnectionState::Disconnected);
+    let error = status.last_error.unwrap_or_default();
+    assert!(
+        error.contains("r-0001.csv")
+            && error.contains("r-0002.csv")
+            && error.contains("give the pieces in the order they were recorded"),
+        "{error}"
     );
 }

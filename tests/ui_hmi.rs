@@ -646,7 +646,7 @@ fn the_warmup_checklist_is_driven_to_sign_off_and_saved() {
     // One minute of held samples after the test is enough to judge the rates here.
     profile.warmup.settle_window_min = 1.0;
     let source = SourceSpec::Replay {
-        path: recording,
+        pieces: vec![recording],
         options: ReplayOptions {
             speed: ReplaySpeed::Factor(25.0),
             paused: false,

@@ -14,9 +14,11 @@ use servosight::ui::{HmiOptions, SessionConfig, SourceSpec};
 /// Options of the HMI (given without a subcommand).
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// Replay this recording (CSV v1) instead of running the embedded twin.
-    #[arg(long, value_name = "FILE", conflicts_with = "port")]
-    pub replay: Option<PathBuf>,
+    /// Replay this recording (CSV v1) instead of running the embedded twin. Several files are
+    /// the pieces of one recording in the order they were recorded (the recorder starts a new
+    /// one every hour: `shift.csv shift-0001.csv …`), replayed as one.
+    #[arg(long, value_name = "FILE", num_args = 1.., conflicts_with = "port")]
+    pub replay: Option<Vec<PathBuf>>,
     /// Read a controller over Modbus RTU on this serial device instead of the twin.
     #[arg(long, value_name = "DEV")]
     pub port: Option<String>,
@@ -105,8 +107,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     });
     let speed = ReplaySpeed::Factor(args.speed);
     let source = match (&args.replay, &args.port) {
-        (Some(path), _) => SourceSpec::Replay {
-            path: path.clone(),
+        (Some(pieces), _) => SourceSpec::Replay {
+            pieces: pieces.clone(),
             options: ReplayOptions {
                 speed,
                 ..ReplayOptions::default()

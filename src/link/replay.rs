@@ -1,12 +1,13 @@
-//! Replay of a CSV v1 recording as if it were a live source.
+//! Replay of a CSV v1 recording as if it were a live source: one file, or the pieces a recorder
+//! rotated it into, read as one.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 use tokio::time::Instant;
 
 use super::{ControllerLink, Frame, LinkCommand, LinkError, SourceEnds, command_or_due};
-use crate::signal::RecordingReader;
+use crate::signal::RecordingPieces;
 
 /// How fast a replay runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,21 +41,26 @@ impl Default for ReplayOptions {
 }
 
 impl ControllerLink {
-    /// Replays a recording file. Its metadata and header are read now, so a missing or broken
-    /// file is reported here; a bad row later ends the replay with the error in the status.
+    /// Replays a recording: one file, or the pieces of one recording in the order they were
+    /// recorded (the recorder starts a new file every hour, `shift.csv`, `shift-0001.csv`, …),
+    /// read as one ([`RecordingPieces`]). The first piece's metadata and header are read now, so
+    /// a missing or broken first file is reported here; a bad row later, a later piece with other
+    /// columns or one that starts before the piece before it ends, ends the replay with the
+    /// error, which names the file, in the status, after every row before it was delivered.
+    /// A seek may go to any piece.
     ///
     /// The frames have exactly the file's columns. A recording without `cut_depth_mm` (older
     /// files, or ones from a controller that does not publish it) stays without it: no depth
     /// is made up, because a 0 would claim "not cutting" and cuts would be scored as motor
     /// friction. The estimators then say which score they cannot compute
     /// ([`crate::estimators::EstimatorPipeline::notes`]).
-    pub fn replay(path: &Path, options: ReplayOptions) -> Result<ControllerLink, LinkError> {
-        let reader = RecordingReader::open(path)?;
+    pub fn replay(pieces: &[PathBuf], options: ReplayOptions) -> Result<ControllerLink, LinkError> {
+        let reader = RecordingPieces::open(pieces)?;
         let schema = reader.schema().clone();
-        let path = path.to_path_buf();
-        let source = format!("replay of {}", path.display());
+        let pieces = pieces.to_vec();
+        let source = format!("replay of {}", RecordingPieces::short_name(&pieces));
         ControllerLink::start(source, schema, false, options.stale_after, move |ends| {
-            run_replay(path, reader, options, ends)
+            run_replay(pieces, reader, options, ends)
         })
     }
 }
@@ -66,8 +72,8 @@ struct Clock {
 }
 
 async fn run_replay(
-    path: PathBuf,
-    mut reader: RecordingReader<std::fs::File>,
+    pieces: Vec<PathBuf>,
+    mut reader: RecordingPieces,
     options: ReplayOptions,
     mut ends: SourceEnds,
 ) {
@@ -123,7 +129,7 @@ async fn run_replay(
                     speed = s;
                     clock = None;
                 }
-                LinkCommand::Seek(target_s) => match seek(&path, target_s) {
+                LinkCommand::Seek(target_s) => match seek(&pieces, target_s) {
                     Ok((new_reader, first)) => {
                         reader = new_reader;
                         pending = first;
@@ -162,12 +168,14 @@ async fn run_replay(
     }
 }
 
-/// Reopens the file and skips to the first row at or after `target_s`.
+/// Reopens the recording and skips to the first row at or after `target_s`, through the
+/// pieces before it with every check a replay makes (so a seek past a piece out of order
+/// reports it, as playing through would).
 fn seek(
-    path: &Path,
+    pieces: &[PathBuf],
     target_s: f64,
-) -> Result<(RecordingReader<std::fs::File>, Option<Vec<f64>>), LinkError> {
-    let mut reader = RecordingReader::open(path)?;
+) -> Result<(RecordingPieces, Option<Vec<f64>>), LinkError> {
+    let mut reader = RecordingPieces::open(pieces)?;
     let mut row = Vec::new();
     while reader.read_row(&mut row)? {
         if row[0] >= target_s {

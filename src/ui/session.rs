@@ -47,8 +47,8 @@ pub enum SourceSpec {
     },
     /// A recording replayed as if live.
     Replay {
-        /// The CSV v1 file.
-        path: PathBuf,
+        /// The CSV v1 file, or the pieces of one recording in the order they were recorded.
+        pieces: Vec<PathBuf>,
         /// Speed, pause and staleness.
         options: ReplayOptions,
     },
@@ -234,7 +234,7 @@ impl Session {
             SourceSpec::Twin { config, speed } => {
                 ControllerLink::twin((**config).clone(), *speed, Duration::from_secs(1))?
             }
-            SourceSpec::Replay { path, options } => ControllerLink::replay(path, *options)?,
+            SourceSpec::Replay { pieces, options } => ControllerLink::replay(pieces, *options)?,
             SourceSpec::Serial(modbus) => ControllerLink::modbus(modbus.clone())?,
         };
         let source = link.status().source;
