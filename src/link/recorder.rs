@@ -168,17 +168,7 @@ impl Recorder {
     }
 
     fn part_path(&self, part: u32) -> PathBuf {
-        if part == 0 {
-            return self.config.path.clone();
-        }
-        let path = &self.config.path;
-        let stem = path
-            .file_stem()
-            .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
-        let extension = path
-            .extension()
-            .map_or_else(|| "csv".into(), |e| e.to_string_lossy().into_owned());
-        path.with_file_name(format!("{stem}-{part:04}.{extension}"))
+        crate::signal::piece_path(&self.config.path, part)
     }
 
     fn open_part(&mut self) -> Result<(), RecorderError> {
@@ -409,6 +399,13 @@ mod tests {
         }
         assert_eq!(rows, 20_000);
         assert_eq!(lost, 4.0);
+        // The parts are found beside the first as its later pieces, and read back as one.
+        assert_eq!(crate::signal::later_pieces(&paths[0]).unwrap(), paths[1..]);
+        let whole = crate::signal::RecordingPieces::open(&paths)
+            .unwrap()
+            .read_observed(usize::MAX, None, &mut |_| true)
+            .unwrap();
+        assert_eq!(whole.len(), 20_000);
     }
 
     #[test]

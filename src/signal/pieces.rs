@@ -1,7 +1,10 @@
 //! The pieces of one recording read as one: the files a recorder rotates a long recording into.
 
 use std::fs::File;
-use std::io;
+use std::io::{self, Read};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::csv_format::{RecordingReader, RowSource};
 use super::error::{Location, PieceOrder, RecordingError};
@@ -13,10 +16,12 @@ use super::recording::{Recording, Schema};
 /// rows are checked as [`RecordingReader`] checks them. Opened one at a time, so a shift of
 /// 1 kHz pieces streams in constant memory.
 pub struct RecordingPieces {
-    paths: Vec<std::path::PathBuf>,
+    paths: Vec<PathBuf>,
     /// The piece being read (its index in `paths`).
     at: usize,
-    reader: RecordingReader<File>,
+    reader: RecordingReader<CountedFile>,
+    /// How far the read is, in bytes of all the pieces.
+    progress: ReadProgress,
     /// The last row's time and the piece it came from.
     last: Option<(f64, usize)>,
     /// The rows read in the current piece.
@@ -28,22 +33,36 @@ impl RecordingPieces {
     /// missing piece, or one with other columns, is refused before a row is read (an hour into
     /// a replay is too late to learn the third file was never copied); each is opened again
     /// when its turn comes. At least one path is needed.
-    pub fn open(paths: &[std::path::PathBuf]) -> Result<Self, RecordingError> {
+    pub fn open(paths: &[PathBuf]) -> Result<Self, RecordingError> {
         let first = paths.first().ok_or_else(|| RecordingError::Io {
             source_name: "the recording".into(),
             error: io::Error::other("no recording file given"),
         })?;
-        let reader = RecordingReader::open(first)?;
+        let progress = ReadProgress {
+            read: Arc::default(),
+            total: paths
+                .iter()
+                .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
+                .sum(),
+        };
+        let reader = CountedFile::open_recording(first, &progress.read)?;
         for later in &paths[1..] {
-            Self::open_piece(later, first, reader.schema().names())?;
+            Self::open_piece(later, first, reader.schema().names(), &Arc::default())?;
         }
         Ok(RecordingPieces {
             reader,
+            progress,
             paths: paths.to_vec(),
             at: 0,
             last: None,
             rows_in_piece: 0,
         })
+    }
+
+    /// How far the read is: shared, so a job can show it while [`Self::read_observed`] has
+    /// the pieces.
+    pub fn progress(&self) -> ReadProgress {
+        self.progress.clone()
     }
 
     /// The columns (the first piece's, which every piece has).
@@ -52,7 +71,7 @@ impl RecordingPieces {
     }
 
     /// The pieces' files as given, comma-separated: how the recording is named in messages.
-    pub fn name(paths: &[std::path::PathBuf]) -> String {
+    pub fn name(paths: &[PathBuf]) -> String {
         paths
             .iter()
             .map(|p| p.display().to_string())
@@ -62,7 +81,7 @@ impl RecordingPieces {
 
     /// The pieces named in a line: the file, or the first and last piece and how many there
     /// are (a shift's eight pieces would not fit in a status bar).
-    pub fn short_name(paths: &[std::path::PathBuf]) -> String {
+    pub fn short_name(paths: &[PathBuf]) -> String {
         match paths {
             [first, .., last] => format!(
                 "{} … {} ({} pieces)",
@@ -90,7 +109,8 @@ impl RecordingPieces {
             let Some(next) = self.paths.get(self.at + 1) else {
                 return Ok(false);
             };
-            self.reader = Self::open_piece(next, &self.paths[0], self.reader.schema().names())?;
+            let names = self.reader.schema().names();
+            self.reader = Self::open_piece(next, &self.paths[0], names, &self.progress.read)?;
             self.at += 1;
             self.rows_in_piece = 0;
         }
@@ -113,6 +133,7 @@ impl RecordingPieces {
             mut at,
             mut reader,
             mut last,
+            progress,
             ..
         } = self;
         let schema = reader.schema().clone();
@@ -141,7 +162,7 @@ impl RecordingPieces {
             let Some(next) = paths.get(at + 1) else {
                 break;
             };
-            reader = Self::open_piece(next, &paths[0], schema.names())?;
+            reader = Self::open_piece(next, &paths[0], schema.names(), &progress.read)?;
             at += 1;
         }
         Ok(Recording::from_parts(
@@ -152,13 +173,15 @@ impl RecordingPieces {
         ))
     }
 
-    /// Opens the piece at `path`, which must have the first piece's columns.
+    /// Opens the piece at `path`, which must have the first piece's columns, its bytes counted
+    /// into `read`.
     fn open_piece(
-        path: &std::path::Path,
-        first: &std::path::Path,
+        path: &Path,
+        first: &Path,
         names: &[String],
-    ) -> Result<RecordingReader<File>, RecordingError> {
-        let reader = RecordingReader::open(path)?;
+        read: &Arc<AtomicU64>,
+    ) -> Result<RecordingReader<CountedFile>, RecordingError> {
+        let reader = CountedFile::open_recording(path, read)?;
         let now = reader.schema().names();
         if now != names {
             let missing: Vec<&String> = names.iter().filter(|c| !now.contains(c)).collect();
@@ -181,7 +204,7 @@ impl RecordingPieces {
 /// Checks that piece `at`'s first row, at `time_s` on `line`, does not start before `last`
 /// (the previous row's time and piece).
 fn in_order(
-    paths: &[std::path::PathBuf],
+    paths: &[PathBuf],
     at: usize,
     line: u64,
     time_s: f64,
@@ -201,6 +224,101 @@ fn in_order(
             })))
         }
         _ => Ok(()),
+    }
+}
+
+/// The name a recorder gives piece `part` of the recording it started at `first`: `first`
+/// itself for part 0, then `<stem>-0001.<ext>`, `<stem>-0002.<ext>`, ….
+pub fn piece_path(first: &Path, part: u32) -> PathBuf {
+    if part == 0 {
+        return first.to_path_buf();
+    }
+    let stem = first
+        .file_stem()
+        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
+    let extension = first
+        .extension()
+        .map_or_else(|| "csv".into(), |e| e.to_string_lossy().into_owned());
+    first.with_file_name(format!("{stem}-{part:04}.{extension}"))
+}
+
+/// The pieces a recorder continued the recording `first` in, as [`piece_path`] names them,
+/// that are in `first`'s directory, in the order of their numbers (a number may be missing: a
+/// recorder skips a name an earlier run took). Lists the directory, so call it off the UI
+/// thread.
+pub fn later_pieces(first: &Path) -> io::Result<Vec<PathBuf>> {
+    let (Some(stem), Some(extension)) = (first.file_stem(), first.extension()) else {
+        return Ok(Vec::new());
+    };
+    let prefix = format!("{}-", stem.to_string_lossy());
+    let suffix = format!(".{}", extension.to_string_lossy());
+    let directory = match first.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    let mut numbered = Vec::new();
+    for entry in std::fs::read_dir(directory)? {
+        let file_name = entry?.file_name();
+        let name = file_name.to_string_lossy();
+        let number = name
+            .strip_prefix(&prefix)
+            .and_then(|rest| rest.strip_suffix(&suffix))
+            .filter(|digits| digits.len() >= 4 && digits.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|digits| digits.parse::<u32>().ok())
+            .filter(|&n| n > 0);
+        if let Some(number) = number {
+            numbered.push((number, first.with_file_name(&file_name)));
+        }
+    }
+    numbered.sort();
+    Ok(numbered.into_iter().map(|(_, path)| path).collect())
+}
+
+/// How far a read of pieces is: the bytes read of all of them, against their size when they
+/// were opened.
+#[derive(Debug, Clone)]
+pub struct ReadProgress {
+    read: Arc<AtomicU64>,
+    total: u64,
+}
+
+impl ReadProgress {
+    /// The share read, 0 to 1 (a size that could not be learnt only leaves the bar at 1).
+    pub fn fraction(&self) -> f32 {
+        (self.read.load(Ordering::Relaxed) as f32 / self.total.max(1) as f32).min(1.0)
+    }
+}
+
+/// A recording file that counts the bytes read from it into a shared total.
+struct CountedFile {
+    file: File,
+    read: Arc<AtomicU64>,
+}
+
+impl CountedFile {
+    /// Opens the recording at `path`, its bytes counted into `read`.
+    fn open_recording(
+        path: &Path,
+        read: &Arc<AtomicU64>,
+    ) -> Result<RecordingReader<CountedFile>, RecordingError> {
+        let source = path.display().to_string();
+        let file = File::open(path).map_err(|error| RecordingError::Io {
+            source_name: source.clone(),
+            error,
+        })?;
+        let counted = CountedFile {
+            file,
+            read: Arc::clone(read),
+        };
+        RecordingReader::from_reader(counted, &source)
+    }
+}
+
+impl Read for CountedFile {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.file.read(buf)?;
+        self.read.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
     }
 }
 
@@ -224,12 +342,7 @@ mod tests {
 
     /// Writes `rows` (time, x) cut before each index of `cuts` into files `name-k.csv` in
     /// `dir`.
-    fn write_pieces(
-        dir: &std::path::Path,
-        name: &str,
-        rows: &[(f64, f64)],
-        cuts: &[usize],
-    ) -> Vec<std::path::PathBuf> {
+    fn write_pieces(dir: &Path, name: &str, rows: &[(f64, f64)], cuts: &[usize]) -> Vec<PathBuf> {
         let mut bounds = vec![0];
         bounds.extend(cuts.iter().copied());
         bounds.push(rows.len());
@@ -351,5 +464,70 @@ mod tests {
             .err()
             .expect("refused at open");
         assert!(error.to_string().contains("never-copied.csv"), "{error}");
+    }
+
+    /// The recorder's names for a recording's pieces are found beside its first file in the
+    /// order of their numbers, a number skipped; other files, another recording's pieces and
+    /// names that only look alike are not taken.
+    #[test]
+    fn the_pieces_a_recorder_continued_a_recording_in_are_found_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let first = dir.path().join("shift.csv");
+        assert_eq!(piece_path(&first, 0), first);
+        assert_eq!(piece_path(&first, 2), dir.path().join("shift-0002.csv"));
+        for name in [
+            "shift.csv",
+            "shift-0003.csv",
+            "shift-0001.csv",
+            "shift-0012.csv",
+            "shift-0000.csv",
+            "shift-01.csv",
+            "shift-0002.csv.partial",
+            "shift-00x1.csv",
+            "shift-0001.txt",
+            "other-0001.csv",
+            "shift-2-0001.csv",
+        ] {
+            std::fs::write(dir.path().join(name), "time_s\n").unwrap();
+        }
+        let found = later_pieces(&first).unwrap();
+        let names: Vec<String> = found
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            ["shift-0001.csv", "shift-0003.csv", "shift-0012.csv"]
+        );
+        assert!(found.iter().all(|p| p.parent() == Some(dir.path())));
+        assert!(
+            later_pieces(&dir.path().join("shift-0003.csv"))
+                .unwrap()
+                .is_empty()
+        );
+        assert!(later_pieces(&dir.path().join("missing").join("a.csv")).is_err());
+    }
+
+    /// A read's progress counts the bytes of every piece against their size at open (read
+    /// ahead by a buffer of 64 KiB, a tenth of these pieces).
+    #[test]
+    fn the_progress_of_a_read_counts_every_piece() {
+        let dir = tempfile::tempdir().unwrap();
+        let rows: Vec<(f64, f64)> = (0..60_000).map(|i| (i as f64, i as f64)).collect();
+        let paths = write_pieces(dir.path(), "piece", &rows, &[20_000, 40_000]);
+        let mut pieces = RecordingPieces::open(&paths).unwrap();
+        let progress = pieces.progress();
+        assert!(progress.fraction() < 0.15, "{}", progress.fraction());
+        let mut row = Vec::new();
+        for _ in 0..30_000 {
+            assert!(pieces.read_row(&mut row).unwrap());
+        }
+        let halfway = progress.fraction();
+        assert!((0.45..0.65).contains(&halfway), "{halfway}");
+        let recording = pieces
+            .read_observed(usize::MAX, None, &mut |_| true)
+            .unwrap();
+        assert_eq!(recording.len(), 30_000);
+        assert_eq!(progress.fraction(), 1.0);
     }
 }
