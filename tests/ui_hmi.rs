@@ -829,6 +829,120 @@ fn discrepancy_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::P
     (sim, real, case.target)
 }
 
+/// `real` cut at a third and two thirds of its time into the pieces a recorder would have
+/// written in `dir`: `shift.csv`, `shift-0001.csv`, `shift-0002.csv`.
+fn recorded_in_pieces(real: &std::path::Path, dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let time = servosight::signal::read_recording(real)
+        .expect("real reads")
+        .time()
+        .to_vec();
+    let end = time.last().copied().unwrap_or(0.0);
+    let cuts = [f64::NEG_INFINITY, end / 3.0, 2.0 * end / 3.0, f64::INFINITY];
+    std::fs::create_dir_all(dir).expect("pieces directory");
+    (0..3u32)
+        .map(|k| {
+            let path = servosight::signal::piece_path(&dir.join("shift.csv"), k);
+            crate::common::rows_between(real, &path, cuts[k as usize], cuts[k as usize + 1]);
+            path
+        })
+        .collect()
+}
+
+/// A real recording the recorder cut into pieces is analysed in the Model lab as one: the
+/// header job finds the pieces beside the chosen file and the panel says so; the analysis
+/// reads them after it and reports what the whole file gives. "this file only" reads the
+/// chosen file alone, and a piece with other columns is refused with its file named.
+#[test]
+fn the_model_lab_reads_a_real_recording_in_the_pieces_the_recorder_cut_it_into() {
+    use servosight::ui::jobs::{JobContext, JobStop};
+    use servosight::ui::sim_vs_real::{DiscrepancyRequest, read_shared_columns, run_discrepancy};
+    use std::sync::{Arc, atomic::AtomicBool};
+    let mut f = start();
+    let (sim, real, target) = discrepancy_files(f._dir.path());
+    let pieces = recorded_in_pieces(&real, &f._dir.path().join("recorded"));
+    let h = &mut f.harness;
+    click(h, "Model lab");
+    click(h, "Sim vs real");
+    type_into(h, "Simulation (CSV v1)", sim.to_str().expect("utf-8 path"));
+    type_into(
+        h,
+        "Real recording (CSV v1)",
+        pieces[0].to_str().expect("utf-8 path"),
+    );
+    let columns_read = |app: &HmiApp| {
+        let d = &app.state.model_lab.discrepancy;
+        d.columns.is_some() || d.columns_error.is_some()
+    };
+    step_until(h, "the shared columns", columns_read);
+    settle(h);
+    let said = format!(
+        "read as one with the pieces the recorder continued it in: {} … {} (2 pieces)",
+        pieces[1].display(),
+        pieces[2].display()
+    );
+    let view = servosight::ui::vm::discrepancy::build(&h.state().state, 100);
+    assert_eq!(view.real_pieces.as_deref(), Some(said.as_str()));
+    assert!(view.shared_columns.contains(&target));
+    assert!(shows(h, "read as one with the pieces"));
+    click(h, "this file only");
+    step_until(h, "the first piece's columns", |app| {
+        app.state
+            .model_lab
+            .discrepancy
+            .columns
+            .as_ref()
+            .is_some_and(|c| c.real_pieces.len() == 1)
+    });
+    settle(h);
+    assert!(!shows(h, "read as one with the pieces"));
+
+    let (tx, _rx) = std::sync::mpsc::sync_channel(1 << 16);
+    let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
+    let analyse = |real: &std::path::Path, find_later_pieces: bool| {
+        let request = DiscrepancyRequest {
+            sim: sim.clone(),
+            real: vec![real.to_path_buf()],
+            find_later_pieces,
+            target: target.clone(),
+            average_s: None,
+        };
+        run_discrepancy(request, &context).expect("the analysis runs")
+    };
+    let whole = analyse(&real, false);
+    let in_pieces = analyse(&pieces[0], true);
+    assert_eq!(in_pieces.real_read, pieces);
+    let json = |o: &servosight::ui::sim_vs_real::DiscrepancyOutcome| {
+        serde_json::to_value(&o.report).expect("the report serialises")
+    };
+    assert_eq!(json(&in_pieces), json(&whole));
+    let first_only = analyse(&pieces[0], false);
+    assert_eq!(first_only.real_read, &pieces[..1]);
+    assert!(
+        first_only.report.rows * 2 < whole.report.rows,
+        "{} rows of the first piece against {}",
+        first_only.report.rows,
+        whole.report.rows
+    );
+
+    let text = std::fs::read_to_string(&pieces[2])
+        .expect("the last piece")
+        .replacen("ambient_C", "room_C", 1);
+    std::fs::write(&pieces[2], text).expect("the last piece rewritten");
+    let (tx, _rx) = std::sync::mpsc::sync_channel(16);
+    let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
+    match read_shared_columns(sim.clone(), pieces[0].clone(), true, &context) {
+        Err(JobStop::Failed(message)) => assert!(
+            message.contains(&format!(
+                "{}: its columns are not those of {}",
+                pieces[2].display(),
+                pieces[0].display()
+            )),
+            "{message}"
+        ),
+        other => panic!("expected the piece refused, got {other:?}"),
+    }
+}
+
 #[test]
 fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physics() {
     let mut f = start();
@@ -1041,7 +1155,8 @@ fn the_discrepancy_job_reports_the_librarys_errors() {
     let failure = |sim: &std::path::Path, real: &std::path::Path, target: &str| {
         let request = DiscrepancyRequest {
             sim: sim.to_path_buf(),
-            real: real.to_path_buf(),
+            real: vec![real.to_path_buf()],
+            find_later_pieces: true,
             target: target.into(),
             average_s: None,
         };
@@ -1103,7 +1218,8 @@ fn the_discrepancy_job_refuses_a_recording_too_long_or_reads_it_averaged() {
     let context = JobContext::new(tx, Arc::new(AtomicBool::new(false)));
     let request = |average_s| DiscrepancyRequest {
         sim: long.clone(),
-        real: real.clone(),
+        real: vec![real.clone()],
+        find_later_pieces: false,
         target: "S.stator_temp_C".into(),
         average_s,
     };
@@ -1207,7 +1323,8 @@ fn cancelling_the_discrepancy_job_stops_the_analysis() {
     });
     let request = DiscrepancyRequest {
         sim,
-        real,
+        real: vec![real],
+        find_later_pieces: false,
         target,
         average_s: None,
     };

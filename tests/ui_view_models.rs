@@ -1229,10 +1229,12 @@ fn discrepancy_outcome(
     DiscrepancyOutcome::new(
         DiscrepancyRequest {
             sim: "sim.csv".into(),
-            real: "real.csv".into(),
+            real: vec!["real.csv".into()],
+            find_later_pieces: true,
             target: target.into(),
             average_s: None,
         },
+        vec!["real.csv".into()],
         report,
     )
 }
@@ -1253,9 +1255,14 @@ fn discrepancy_view_models() {
         ..missing.clone()
     };
     let consistent_pair = make_pair(&consistent);
+    // The real recording was recorded in three pieces.
     let columns = SharedColumns {
         sim: "sim.csv".into(),
         real: "real.csv".into(),
+        find_later_pieces: true,
+        real_pieces: ["real.csv", "real-0001.csv", "real-0002.csv"]
+            .map(std::path::PathBuf::from)
+            .to_vec(),
         columns: vec![missing.target.clone(), "X.torque_Nm".into()],
     };
     let mut s = state("normal");

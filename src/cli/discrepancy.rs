@@ -169,11 +169,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.plot {
         let request = DiscrepancyRequest {
             sim: args.sim.clone(),
-            real: PathBuf::from(RecordingPieces::name(&args.real)),
+            real: args.real.clone(),
+            find_later_pieces: false,
             target: args.target.clone(),
             average_s: args.average,
         };
-        let view = result_view(&DiscrepancyOutcome::new(request, report), PLOT_POINTS);
+        let outcome = DiscrepancyOutcome::new(request, args.real.clone(), report);
+        let view = result_view(&outcome, PLOT_POINTS);
         let canvas = render_discrepancy(&view, false, PLOT_WIDTH_PX);
         canvas.save_png(path)?;
         eprintln!(

@@ -136,8 +136,8 @@ pub struct HmiApp {
     /// Saving the sim-vs-real analysis's report.
     discrepancy_report_job: Option<Job<SavedDiscrepancyReport>>,
     columns_job: Option<Job<SharedColumns>>,
-    /// The (simulation, real) paths whose shared columns were last asked for.
-    columns_asked: Option<(String, String)>,
+    /// The (simulation, real, later pieces looked for) whose shared columns were last asked for.
+    columns_asked: Option<(String, String, bool)>,
     /// When the depth of cut was last recomputed on its own (wall clock).
     depth_refreshed: Option<Instant>,
     export_note: Option<String>,
@@ -481,16 +481,18 @@ impl HmiApp {
         {
             return;
         }
-        let paths = (
+        let asked = (
             forms.disc_sim.trim().to_string(),
             forms.disc_real.trim().to_string(),
+            !forms.disc_real_this_file_only,
         );
-        if paths.0.is_empty() || paths.1.is_empty() || self.columns_asked.as_ref() == Some(&paths) {
+        if asked.0.is_empty() || asked.1.is_empty() || self.columns_asked.as_ref() == Some(&asked) {
             return;
         }
-        let (sim, real) = (PathBuf::from(&paths.0), PathBuf::from(&paths.1));
-        self.columns_asked = Some(paths);
-        match Job::spawn("shared columns", move |c| read_shared_columns(sim, real, c)) {
+        let (sim, real, find_later) = (PathBuf::from(&asked.0), PathBuf::from(&asked.1), asked.2);
+        self.columns_asked = Some(asked);
+        let read = move |c: &_| read_shared_columns(sim, real, find_later, c);
+        match Job::spawn("shared columns", read) {
             Ok(job) => self.columns_job = Some(job),
             Err(error) => {
                 self.state.model_lab.discrepancy.columns_error =
@@ -514,7 +516,8 @@ impl HmiApp {
         };
         let request = DiscrepancyRequest {
             sim: PathBuf::from(forms.disc_sim.trim()),
-            real: PathBuf::from(forms.disc_real.trim()),
+            real: vec![PathBuf::from(forms.disc_real.trim())],
+            find_later_pieces: !forms.disc_real_this_file_only,
             target: forms.disc_target.trim().to_string(),
             average_s,
         };
@@ -522,7 +525,7 @@ impl HmiApp {
             "discrepancy of {} ({} vs {})",
             request.target,
             request.sim.display(),
-            request.real.display()
+            forms.disc_real.trim()
         );
         match Job::spawn(title.clone(), move |c| run_discrepancy(request, c)) {
             Ok(job) => {

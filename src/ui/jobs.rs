@@ -2,15 +2,16 @@
 //! (`servosight-job`), progress through a bounded channel, cancel through a shared flag that
 //! the job checks between steps.
 
-use std::io::Read;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 
 use super::state::JobProgress;
 use crate::fit::{Design, FitReport, ols, parse_terms, sensitivity};
-use crate::signal::{Recording, RecordingError, RecordingReader};
+#[cfg(doc)]
+use crate::signal::RecordingReader;
+use crate::signal::{Recording, RecordingError, RecordingPieces};
 
 /// What a job reports.
 #[derive(Debug)]
@@ -141,20 +142,6 @@ pub struct FitOutcome {
     pub report: FitReport,
 }
 
-/// Counts bytes read, so reading a big file can report how far it is.
-struct CountingReader<R> {
-    inner: R,
-    read: Arc<AtomicU64>,
-}
-
-impl<R: Read> Read for CountingReader<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        self.read.fetch_add(n as u64, Ordering::Relaxed);
-        Ok(n)
-    }
-}
-
 /// The most rows a job reads of a recording, and what the message that refuses more tells
 /// the user to do.
 #[derive(Debug, Clone)]
@@ -165,35 +152,27 @@ pub struct RowLimit {
     pub advice: String,
 }
 
-/// Reads a recording file on a job's thread, whole or (given `average_s`) averaged over blocks
-/// of that many seconds as [`RecordingReader::read_averaged`] does, reporting `stage (N rows)`
-/// with a fraction that moves through `span` as the bytes are read, and stopping within
-/// [`RecordingReader::OBSERVED_EVERY`] rows of a cancel. Given a [`RowLimit`], a file with more
-/// rows (or blocks) fails the job at the row past them, before the rest is read.
+/// Reads a recording on a job's thread — one file, or the pieces of one recording in the order
+/// they were recorded, read as one ([`RecordingPieces`]) — whole or (given `average_s`)
+/// averaged over blocks of that many seconds as [`RecordingReader::read_averaged`] does,
+/// reporting `stage (N rows)` with a fraction that moves through `span` as the bytes are read,
+/// and stopping within [`RecordingReader::OBSERVED_EVERY`] rows of a cancel. Given a
+/// [`RowLimit`], a recording with more rows (or blocks) fails the job at the row past them,
+/// before the rest is read.
 pub fn read_with_progress<T>(
-    path: &std::path::Path,
+    pieces: &[PathBuf],
     context: &JobContext<T>,
     stage: &str,
     span: std::ops::Range<f32>,
     limit: Option<&RowLimit>,
     average_s: Option<f64>,
 ) -> Result<Recording, JobStop> {
-    let file = std::fs::File::open(path)
-        .map_err(|e| JobStop::Failed(format!("{}: {e}", path.display())))?;
-    // The size only scales the progress bar: an unknown size must not stop the read.
-    let size = file.metadata().map(|m| m.len()).unwrap_or(0).max(1);
-    let read = Arc::new(AtomicU64::new(0));
-    let counting = CountingReader {
-        inner: file,
-        read: Arc::clone(&read),
-    };
-    let source = path.display().to_string();
-    let reader = RecordingReader::from_reader(counting, &source)
-        .map_err(|e| JobStop::Failed(e.to_string()))?;
+    let reader = RecordingPieces::open(pieces).map_err(|e| JobStop::Failed(e.to_string()))?;
+    let progress = reader.progress();
     let averaging = average_s.map_or(String::new(), |s| format!(", averaging over {s} s"));
     // `false` (stop) once the job is cancelled.
     let mut observe = |rows: u64| {
-        let fraction = (read.load(Ordering::Relaxed) as f32 / size as f32).min(1.0);
+        let fraction = progress.fraction();
         context.progress(
             &format!("{stage} ({rows} rows{averaging})"),
             Some(span.start + (span.end - span.start) * fraction),
@@ -231,7 +210,7 @@ pub fn run_fit(
     }
     context.progress("reading the database", Some(0.0));
     let recording = read_with_progress(
-        &request.data,
+        std::slice::from_ref(&request.data),
         context,
         "reading the database",
         0.0..0.8,

@@ -16,16 +16,21 @@ use super::jobs::{JobContext, JobStop, RowLimit, read_with_progress};
 use crate::discrepancy::{
     DiscrepancyError, DiscrepancyReport, Options, RowBudget, analyse_observed,
 };
-use crate::signal::RecordingReader;
 use crate::signal::channel::TIME;
+use crate::signal::{RecordingPieces, RecordingReader, later_pieces};
 
 /// What the Model lab asks the discrepancy analysis for.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiscrepancyRequest {
     /// The simulation (CSV v1).
     pub sim: PathBuf,
-    /// The real recording (CSV v1).
-    pub real: PathBuf,
+    /// The real recording (CSV v1): one file, or the pieces of one recording in the order they
+    /// were recorded, read as one.
+    pub real: Vec<PathBuf>,
+    /// Read, after the first real file, the pieces the recorder continued it in, found beside
+    /// it ([`later_pieces`]) instead of the rest of `real`: the Model lab's default, since a
+    /// recorder starts a new file every hour and a slow effect needs the whole shift.
+    pub find_later_pieces: bool,
     /// The column compared.
     pub target: String,
     /// Read both recordings averaged over blocks of this many seconds (as
@@ -59,11 +64,36 @@ pub const PLOT_CHANNELS: [&str; 5] = [
     "residual_after",
 ];
 
+impl DiscrepancyRequest {
+    /// The real recording's files to read: `real`, or its first file and the later pieces found
+    /// beside it. Lists a directory, so only on a job's thread.
+    pub fn real_pieces(&self) -> Result<Vec<PathBuf>, String> {
+        match self.real.first() {
+            Some(first) if self.find_later_pieces => real_pieces(first, true),
+            _ => Ok(self.real.clone()),
+        }
+    }
+}
+
+/// `first`, followed (given `find_later`) by the pieces the recorder continued it in that are
+/// beside it.
+fn real_pieces(first: &Path, find_later: bool) -> Result<Vec<PathBuf>, String> {
+    let mut pieces = vec![first.to_path_buf()];
+    if find_later {
+        let later = later_pieces(first)
+            .map_err(|e| format!("cannot look for the pieces beside {}: {e}", first.display()))?;
+        pieces.extend(later);
+    }
+    Ok(pieces)
+}
+
 /// A finished analysis with its source.
 #[derive(Debug, Clone)]
 pub struct DiscrepancyOutcome {
     /// What was asked.
     pub request: DiscrepancyRequest,
+    /// The real recording's files that were read.
+    pub real_read: Vec<PathBuf>,
     /// The report (its `plot` holds the library's plot-ready series).
     pub report: DiscrepancyReport,
     /// The report's plot series ([`PLOT_CHANNELS`]) in a decimation pyramid, so each frame
@@ -72,11 +102,17 @@ pub struct DiscrepancyOutcome {
 }
 
 impl DiscrepancyOutcome {
-    /// The outcome of `request`, its plot series put into their pyramid.
-    pub fn new(request: DiscrepancyRequest, report: DiscrepancyReport) -> DiscrepancyOutcome {
+    /// The outcome of `request` on the real files `real_read`, its plot series put into their
+    /// pyramid.
+    pub fn new(
+        request: DiscrepancyRequest,
+        real_read: Vec<PathBuf>,
+        report: DiscrepancyReport,
+    ) -> DiscrepancyOutcome {
         let plot = plot_history(&report);
         DiscrepancyOutcome {
             request,
+            real_read,
             report,
             plot,
         }
@@ -145,8 +181,9 @@ pub fn run_discrepancy(
         rows: budget.rows,
         advice: format!("{}; {advice}", budget.reason()),
     };
+    let real_read = request.real_pieces().map_err(JobStop::Failed)?;
     let sim = read_with_progress(
-        &request.sim,
+        std::slice::from_ref(&request.sim),
         context,
         "reading the simulation",
         0.0..0.2,
@@ -155,7 +192,7 @@ pub fn run_discrepancy(
     )?;
     context.progress("reading the real recording", Some(0.2));
     let real = read_with_progress(
-        &request.real,
+        &real_read,
         context,
         "reading the real recording",
         0.2..0.4,
@@ -177,7 +214,7 @@ pub fn run_discrepancy(
         })?;
     context.check()?;
     context.progress("preparing the plots", Some(0.95));
-    Ok(DiscrepancyOutcome::new(request, report))
+    Ok(DiscrepancyOutcome::new(request, real_read, report))
 }
 
 /// Where [`save_report`] wrote a report.
@@ -260,32 +297,45 @@ pub fn run_save_report(
 pub struct SharedColumns {
     /// The simulation that was read.
     pub sim: PathBuf,
-    /// The real recording that was read.
+    /// The real recording that was asked for.
     pub real: PathBuf,
+    /// Whether the later pieces beside it were looked for.
+    pub find_later_pieces: bool,
+    /// Its files whose headers were read: `real`, then the later pieces found.
+    pub real_pieces: Vec<PathBuf>,
     /// What both have.
     pub columns: Vec<String>,
 }
 
-/// Reads only the headers of both files (a few kilobytes) for the target choice.
+/// Reads only the headers of both recordings (a few kilobytes each) for the target choice;
+/// given `find_later_pieces`, also finds the pieces the recorder continued the real one in and
+/// checks that each has its columns, so the panel can say what the analysis will read.
 pub fn read_shared_columns(
     sim: PathBuf,
     real: PathBuf,
+    find_later_pieces: bool,
     context: &JobContext<SharedColumns>,
 ) -> Result<SharedColumns, JobStop> {
     context.progress("reading the headers", None);
-    let header = |path: &Path| -> Result<Vec<String>, JobStop> {
-        RecordingReader::open(path)
-            .map(|reader| reader.schema().names().to_vec())
-            .map_err(|e| JobStop::Failed(e.to_string()))
-    };
-    let in_sim = header(&sim)?;
+    let in_sim = RecordingReader::open(&sim)
+        .map(|reader| reader.schema().names().to_vec())
+        .map_err(|e| JobStop::Failed(e.to_string()))?;
     context.check()?;
-    let in_real = header(&real)?;
+    let real_pieces = real_pieces(&real, find_later_pieces).map_err(JobStop::Failed)?;
+    let in_real = RecordingPieces::open(&real_pieces)
+        .map(|pieces| pieces.schema().names().to_vec())
+        .map_err(|e| JobStop::Failed(e.to_string()))?;
     let columns = in_real
         .into_iter()
         .filter(|c| c != TIME && in_sim.contains(c))
         .collect();
-    Ok(SharedColumns { sim, real, columns })
+    Ok(SharedColumns {
+        sim,
+        real,
+        find_later_pieces,
+        real_pieces,
+        columns,
+    })
 }
 
 #[cfg(test)]

@@ -187,6 +187,8 @@ pub struct Forms {
     pub disc_sim: String,
     /// The sim-vs-real real recording.
     pub disc_real: String,
+    /// Read only the chosen real file, not the pieces the recorder continued it in.
+    pub disc_real_this_file_only: bool,
     /// The sim-vs-real compared column.
     pub disc_target: String,
     /// The sim-vs-real blocks of time (seconds) both recordings are averaged over; blank

@@ -162,6 +162,18 @@ pub fn discrepancy_ui(
             ui.end_row();
             labelled_text(ui, "Real recording (CSV v1)", &mut forms.disc_real, 420.0);
             ui.end_row();
+            ui.label("");
+            ui.vertical(|ui| {
+                ui.checkbox(&mut forms.disc_real_this_file_only, "this file only")
+                    .on_hover_text(
+                        "otherwise the pieces the recorder continued it in (NAME-0001.csv, \
+                         NAME-0002.csv, … beside it) are read after it, as one recording",
+                    );
+                if let Some(pieces) = &view.real_pieces {
+                    ui.label(pieces);
+                }
+            });
+            ui.end_row();
             let label = ui.label("Compared column");
             ui.horizontal(|ui| {
                 ui.add(egui::TextEdit::singleline(&mut forms.disc_target).desired_width(300.0))

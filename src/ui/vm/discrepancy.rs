@@ -6,6 +6,7 @@ use serde::Serialize;
 
 use super::{channel_label, duration, probability, statistic, unit};
 use crate::discrepancy::{Region, Verdict};
+use crate::signal::RecordingPieces;
 use crate::ui::sim_vs_real::{DiscrepancyOutcome, PLOT_CHANNELS};
 use crate::ui::state::{HmiState, JobProgress};
 
@@ -129,6 +130,9 @@ pub struct DiscrepancyView {
     pub shared_columns: Vec<String>,
     /// Why the headers could not be read.
     pub columns_error: Option<String>,
+    /// The later pieces found beside the real recording, which the analysis reads after it as
+    /// one recording; `None` when there are none or only the chosen file is read.
+    pub real_pieces: Option<String>,
     /// The running analysis's progress.
     pub running: Option<JobProgress>,
     /// The last analysis.
@@ -151,6 +155,16 @@ pub fn build(state: &HmiState, max_points: usize) -> DiscrepancyView {
             .map(|c| c.columns.clone())
             .unwrap_or_default(),
         columns_error: d.columns_error.clone(),
+        real_pieces: d
+            .columns
+            .as_ref()
+            .and_then(|c| c.real_pieces.get(1..).filter(|later| !later.is_empty()))
+            .map(|later| {
+                format!(
+                    "read as one with the pieces the recorder continued it in: {}",
+                    RecordingPieces::short_name(later)
+                )
+            }),
         running: d.running.clone(),
         result: d.result.as_ref().map(|o| result_view(o, max_points)),
         error: d.error.clone(),
@@ -192,7 +206,7 @@ pub fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> Discrepan
     }
     DiscrepancyResultView {
         sim: outcome.request.sim.display().to_string(),
-        real: outcome.request.real.display().to_string(),
+        real: RecordingPieces::short_name(&outcome.real_read),
         target: format!("{} ({})", r.target, channel_label(&r.target)),
         missing_physics: r.verdict == Verdict::MissingPhysics,
         verdict: match r.verdict {
