@@ -956,3 +956,104 @@ fn estimate_carries_on_across_the_pieces_of_a_recording() {
         "{columns}"
     );
 }
+
+/// The commands that analyse one stretch of a recording — the depth of cut over a day's cuts,
+/// the backlash test and the friction fingerprint of the warm-up moves — read the pieces the
+/// recorder cut it into as one: the same JSON report as the whole file, where the first piece
+/// alone gives another or none, so the second piece counts; pieces out of
+/// order, or a piece that is missing, are refused with the file named before anything is
+/// analysed.
+#[test]
+fn the_analyses_of_a_recording_read_its_pieces_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&str, &[&str], &[&str]); 3] = [
+        (
+            "depth-of-cut",
+            &["--scenario", "production", "--hours", "2", "--seed", "5"],
+            &[],
+        ),
+        (
+            "backlash",
+            &["--scenario", "backlash-test", "--seed", "4"],
+            &["--axis", "X"],
+        ),
+        (
+            "fingerprint",
+            &["--scenario", "warmup", "--hours", "0.1", "--seed", "1"],
+            &["--axis", "X"],
+        ),
+    ];
+    for (command, scenario, options) in cases {
+        let whole = simulate(dir.path(), &format!("{command}.csv"), scenario);
+        let end = read_recording(&whole)
+            .unwrap()
+            .time()
+            .last()
+            .copied()
+            .unwrap();
+        let (first, second) = (
+            dir.path().join(format!("{command}-piece.csv")),
+            dir.path().join(format!("{command}-piece-0001.csv")),
+        );
+        rows_between(&whole, &first, f64::NEG_INFINITY, end / 2.0);
+        rows_between(&whole, &second, end / 2.0, f64::INFINITY);
+        let report = |recordings: &[&std::path::Path], name: &str| {
+            let json = dir.path().join(format!("{command}-{name}.json"));
+            let mut args = vec![command, "--recording"];
+            args.extend(recordings.iter().map(|r| arg(r)));
+            args.extend(options);
+            args.extend(["--json", arg(&json)]);
+            let run = servosight(&args);
+            assert!(run.status.success(), "{command}: {}", stderr(&run));
+            serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(&json).unwrap())
+                .unwrap()
+        };
+        let mut from_whole = report(&[&whole], "whole");
+        let mut from_pieces = report(&[&first, &second], "pieces");
+        if command == "fingerprint" {
+            // The fingerprint names what it was taken from.
+            let source = |r: &mut serde_json::Value| r["fingerprint"]["source"].take();
+            assert_eq!(source(&mut from_whole), arg(&whole));
+            let named = format!("{}, {}", first.display(), second.display());
+            assert_eq!(source(&mut from_pieces), named.as_str());
+        }
+        assert_eq!(from_pieces, from_whole, "{command}");
+        // The first piece alone is another report (or none): the second piece counted.
+        let json = dir.path().join(format!("{command}-half.json"));
+        let mut args = vec![command, "--recording", arg(&first)];
+        args.extend(options);
+        args.extend(["--json", arg(&json)]);
+        if servosight(&args).status.success() {
+            let mut half: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+            if command == "fingerprint" {
+                half["fingerprint"]["source"].take();
+            }
+            assert_ne!(
+                half, from_whole,
+                "{command}: half the recording reads as the whole"
+            );
+        }
+
+        let refused = |recordings: &[&std::path::Path]| {
+            let mut args = vec![command, "--recording"];
+            args.extend(recordings.iter().map(|r| arg(r)));
+            args.extend(options);
+            let run = servosight(&args);
+            assert!(!run.status.success(), "{command} took {recordings:?}");
+            stderr(&run)
+        };
+        let backwards = refused(&[&second, &first]);
+        assert!(
+            backwards.contains(&format!("{}: line", first.display()))
+                && backwards.contains("give the pieces in the order they were recorded"),
+            "{command}: {backwards}"
+        );
+        let missing = dir.path().join(format!("{command}-piece-0002.csv"));
+        let gone = refused(&[&first, &second, &missing]);
+        assert!(
+            gone.contains(&missing.display().to_string()),
+            "{command}: {gone}"
+        );
+    }
+}

@@ -6,15 +6,17 @@ use crate::servosight_cli::{emit_report, out, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::backlash::{analyse_backlash, nc_program};
 use servosight::profile::MachineProfile;
-use servosight::signal::{AxisId, Quantity, read_recording};
+use servosight::signal::{AxisId, Quantity, read_pieces};
 use servosight::sim::BacklashTestPlan;
 
 /// Arguments of `servosight backlash`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A recording of the backlash test (command, position and current at ≥ 200 Hz).
-    #[arg(long)]
-    pub recording: PathBuf,
+    /// A recording of the backlash test (command, position and current at ≥ 200 Hz); several
+    /// files are the pieces of one recording, read as one in the order given (a test the
+    /// recorder's hourly new piece cut in two: test.csv test-0001.csv).
+    #[arg(long, required = true, num_args = 1..)]
+    pub recording: Vec<PathBuf>,
     /// The axis tested.
     #[arg(long, value_parser = parse_axis)]
     pub axis: AxisId,
@@ -57,7 +59,7 @@ fn parse_axis(s: &str) -> Result<AxisId, String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut inputs = vec![args.recording.as_path()];
+    let mut inputs: Vec<&std::path::Path> = args.recording.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.profile.as_deref());
     refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;
     let profile = match &args.profile {
@@ -69,7 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|a| a.screw.as_ref())
         .map(|s| s.lead_mm)
         .with_context(|| format!("the profile has no ball screw for axis {}", args.axis))?;
-    let recording = read_recording(&args.recording).context("cannot read recording")?;
+    let recording = read_pieces(&args.recording).context("cannot read recording")?;
     let report = analyse_backlash(&recording, args.axis, lead)?;
     emit_report(args.json.as_deref(), &report, || {
         outln!(

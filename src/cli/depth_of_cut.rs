@@ -6,14 +6,16 @@ use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::depth_of_cut::recommend_depth_of_cut;
 use servosight::profile::MachineProfile;
-use servosight::signal::read_recording;
+use servosight::signal::read_pieces;
 
 /// Arguments of `servosight depth-of-cut`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A recording with some cuts at different depths (needs `cut_depth_mm`).
-    #[arg(long)]
-    pub recording: PathBuf,
+    /// A recording with some cuts at different depths (needs `cut_depth_mm`); several files
+    /// are the pieces of one recording, read as one in the order given (the recorder starts a
+    /// new piece every hour: day.csv, day-0001.csv, …).
+    #[arg(long, required = true, num_args = 1..)]
+    pub recording: Vec<PathBuf>,
     /// Machine profile (ratings, margin); default: the twin's machine.
     #[arg(long)]
     pub profile: Option<PathBuf>,
@@ -26,14 +28,14 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut inputs = vec![args.recording.as_path()];
+    let mut inputs: Vec<&std::path::Path> = args.recording.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.profile.as_deref());
     refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;
     let profile = match &args.profile {
         Some(path) => MachineProfile::load(path)?,
         None => MachineProfile::twin_default(),
     };
-    let recording = read_recording(&args.recording).context("cannot read recording")?;
+    let recording = read_pieces(&args.recording).context("cannot read recording")?;
     let r = recommend_depth_of_cut(&profile, &recording, args.workpiece_diameter_mm)?;
     emit_report(args.json.as_deref(), &r, || {
         outln!(

@@ -9,7 +9,7 @@ use servosight::estimators::fingerprint::{
     FrictionFingerprint, diagnose_preload, drift, fingerprint,
 };
 use servosight::profile::MachineProfile;
-use servosight::signal::{AxisId, read_recording};
+use servosight::signal::{AxisId, read_pieces};
 
 /// Arguments of `servosight fingerprint`.
 #[derive(Debug, clap::Args)]
@@ -19,9 +19,11 @@ servosight fingerprint --recording warmup-day1.csv --axis X --save-baseline x-ba
 servosight fingerprint --recording warmup-today.csv --axis X --baseline x-baseline.json"
 )]
 pub struct Args {
-    /// A recording with the warm-up moves (both directions, several speeds).
-    #[arg(long)]
-    pub recording: PathBuf,
+    /// A recording with the warm-up moves (both directions, several speeds); several files
+    /// are the pieces of one recording, read as one in the order given (moves the recorder's
+    /// hourly new piece cut in two: warmup.csv warmup-0001.csv).
+    #[arg(long, required = true, num_args = 1..)]
+    pub recording: Vec<PathBuf>,
     /// The axis.
     #[arg(long, value_parser = parse_axis)]
     pub axis: AxisId,
@@ -51,7 +53,7 @@ struct Report {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut inputs = vec![args.recording.as_path()];
+    let mut inputs: Vec<&std::path::Path> = args.recording.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.profile.as_deref());
     // Saving the new baseline over the one compared with is how a baseline is renewed; the
     // JSON report over it would lose it.
@@ -66,7 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let axis_profile = profile
         .axis(args.axis)
         .with_context(|| format!("the profile has no axis {}", args.axis))?;
-    let recording = read_recording(&args.recording).context("cannot read recording")?;
+    let recording = read_pieces(&args.recording).context("cannot read recording")?;
     let current = fingerprint(&recording, args.axis)?;
     if text {
         outln!(

@@ -12,5 +12,5 @@ pub use csv_format::{
     write_recording_to,
 };
 pub use error::{Location, RecordingError};
-pub use pieces::{ReadProgress, RecordingPieces, later_pieces, piece_path};
+pub use pieces::{ReadProgress, RecordingPieces, later_pieces, piece_path, read_pieces};
 pub use recording::{Recording, Schema};

@@ -227,6 +227,12 @@ fn in_order(
     }
 }
 
+/// Reads the pieces of one recording whole, in the order given, into one [`Recording`], as
+/// [`crate::signal::read_recording`] reads a file (one path reads that file).
+pub fn read_pieces(paths: &[PathBuf]) -> Result<Recording, RecordingError> {
+    RecordingPieces::open(paths)?.read_observed(usize::MAX, None, &mut |_| true)
+}
+
 /// The name a recorder gives piece `part` of the recording it started at `first`: `first`
 /// itself for part 0, then `<stem>-0001.<ext>`, `<stem>-0002.<ext>`, ….
 pub fn piece_path(first: &Path, part: u32) -> PathBuf {
