@@ -62,6 +62,13 @@ fn describe_origin(origin: Option<ElongationOrigin>) -> String {
         Some(ElongationOrigin::FirstFrameUnread { time_s }) => format!(
             "the first estimate, at machine time {time_s:.1} s, without a room or stator reading that says whether the spindle was at rest"
         ),
+        Some(ElongationOrigin::AcrossGap {
+            time_s,
+            gap_end_s,
+            gap_s,
+        }) => format!(
+            "machine time {time_s:.1} s, with a gap of {gap_s:.0} s in the recording before {gap_end_s:.1} s: the growth in the gap is not known"
+        ),
         Some(ElongationOrigin::ToolMeasured { time_s, .. }) => {
             format!("the tool measurement at machine time {time_s:.1} s")
         }

@@ -12,8 +12,8 @@ use super::models::{
     WarmStart, warm_excess,
 };
 use super::state::{
-    Clock, Resume, STATE_FORMAT, SavedReading, SavedSpindle, SavedState, StateError, StateWalk,
-    WalkState, calibration_fingerprint,
+    Clock, MAX_RESUME_GAP_S, Resume, STATE_FORMAT, SavedReading, SavedSpindle, SavedState,
+    StateError, StateWalk, WalkState, calibration_fingerprint,
 };
 use super::streaming::{
     BedLags, ComponentThermalEstimator, ElongationInputs, MAX_NODES, MotorFlangeEstimator,
@@ -154,6 +154,19 @@ pub enum ElongationOrigin {
         /// Machine time of the frame, s.
         time_s: f64,
     },
+    /// An earlier count, with a gap in the frames since that was longer than
+    /// [`MAX_RESUME_GAP_S`]: the estimate stepped over it with the inputs of the first frame
+    /// after it, so how far the spindle grew or shrank in it is unknown until the tool is
+    /// measured again (over the twin's production program, up to 9 µm after a gap of 10 to 30
+    /// minutes and 15 µm after an hour: docs/accuracy.md, *A gap in the frames*).
+    AcrossGap {
+        /// Machine time the estimate counts from (the earlier count's), s.
+        time_s: f64,
+        /// Machine time of the first frame after the gap, s.
+        gap_end_s: f64,
+        /// How long the gap was, s.
+        gap_s: f64,
+    },
     /// The first frame after the operator said the tool was measured.
     ToolMeasured {
         /// Machine time of the frame, s.
@@ -192,6 +205,12 @@ impl ElongationOrigin {
             | ElongationOrigin::FirstFrameWarm { time_s, .. }
             | ElongationOrigin::FirstFrameUnread { time_s }
             | ElongationOrigin::ToolMeasured { time_s, .. } => *time_s += shift_s,
+            ElongationOrigin::AcrossGap {
+                time_s, gap_end_s, ..
+            } => {
+                *time_s += shift_s;
+                *gap_end_s += shift_s;
+            }
         }
     }
 
@@ -201,6 +220,7 @@ impl ElongationOrigin {
             ElongationOrigin::FirstFrameAtRest { time_s }
             | ElongationOrigin::FirstFrameWarm { time_s, .. }
             | ElongationOrigin::FirstFrameUnread { time_s }
+            | ElongationOrigin::AcrossGap { time_s, .. }
             | ElongationOrigin::ToolMeasured { time_s, .. } => time_s,
         }
     }
@@ -246,6 +266,7 @@ impl AxisChannels {
     }
 }
 
+#[derive(Clone)]
 struct FeedAxisPipeline {
     axis: AxisId,
     channels: AxisChannels,
@@ -297,6 +318,13 @@ struct SpindlePipeline {
     start: Option<ElongationOrigin>,
 }
 
+/// A pipeline's feed axes and the machine's lags before any frame.
+struct ThermalStart {
+    feed: Vec<FeedAxisPipeline>,
+    room: RoomLags,
+    coolant_lags: SettledLags<2>,
+}
+
 /// Every estimator of a machine.
 pub struct EstimatorPipeline {
     feed: Vec<FeedAxisPipeline>,
@@ -311,6 +339,11 @@ pub struct EstimatorPipeline {
     cut_depth: Option<usize>,
     previous_time: Option<f64>,
     notes: Vec<String>,
+    /// The feed axes and the machine's lags as they were built, before any frame: what they
+    /// start again from after a gap in the frames ([`Self::start_again_after_gap`]).
+    thermal_start: Box<ThermalStart>,
+    /// The longest gap in the frames the estimators step over ([`MAX_RESUME_GAP_S`]).
+    longest_step_s: f64,
     /// The profile's name and its calibration's fingerprint, which a saved state must carry
     /// (`None`: the calibration cannot be fingerprinted, and no state is saved or taken up).
     profile_name: String,
@@ -539,16 +572,23 @@ impl EstimatorPipeline {
                 }
             }
         }
+        let thermal_start = Box::new(ThermalStart {
+            feed: feed.clone(),
+            room: RoomLags::default(),
+            coolant_lags: SettledLags::new(BED_LAG_TAUS_S),
+        });
         Ok(EstimatorPipeline {
             feed,
             spindles,
             ambient,
             coolant,
-            room: RoomLags::default(),
-            coolant_lags: SettledLags::new(BED_LAG_TAUS_S),
+            room: thermal_start.room.clone(),
+            coolant_lags: thermal_start.coolant_lags.clone(),
             cut_depth,
             previous_time: None,
             notes,
+            thermal_start,
+            longest_step_s: MAX_RESUME_GAP_S,
             profile_name: profile.name.clone(),
             calibration_sha256: calibration_fingerprint(calibration),
         })
@@ -577,6 +617,11 @@ impl EstimatorPipeline {
     /// Updates every estimator with one frame (column 0 is `time_s`).
     pub fn update(&mut self, frame: &[f64]) {
         let t = frame[0];
+        let gap_s = self.previous_time.map_or(0.0, |p| t - p);
+        let after_gap = gap_s > self.longest_step_s;
+        if after_gap {
+            self.start_again_after_gap(t, gap_s);
+        }
         let first = self.previous_time.is_none();
         let dt = self.previous_time.map_or(0.0, |p| (t - p).max(0.0));
         self.previous_time = Some(t);
@@ -700,8 +745,71 @@ impl EstimatorPipeline {
             }
         }
         if first {
-            self.note_warm_start(frame, ambient);
+            self.note_warm_start(frame, ambient, after_gap);
         }
+    }
+
+    /// Steps over gaps in the frames of up to `gap_s` instead of [`MAX_RESUME_GAP_S`]
+    /// (infinity: every gap), holding the next frame's inputs through them: what the table in
+    /// docs/accuracy.md, *A gap in the frames*, compares starting again with. The HMI and the
+    /// commands keep the default.
+    pub fn step_over_gaps_up_to(&mut self, gap_s: f64) {
+        self.longest_step_s = gap_s;
+    }
+
+    /// After a gap in the frames longer than [`MAX_RESUME_GAP_S`] (a link down, a piece of a
+    /// recording missing), the feed axes' heat, the bed's lags and the room's, stators' and
+    /// coolant's lags start again as at a first frame (from the profile's warm start), since
+    /// stepping over the gap holds the next frame's inputs through it, which the machine need
+    /// not have done: over the twin's production program a fresh start follows the bearings,
+    /// the nut and the straightness closer from gaps of ten minutes on (the nut 0.12 K off on
+    /// average over the next hour against 0.44–0.60 K stepped over, docs/accuracy.md, *A gap
+    /// in the frames*). The spindle's elongation has no warm start and steps over the gap; it
+    /// still counts from where it did, but its growth in the gap is unknown
+    /// ([`ElongationOrigin::AcrossGap`]). The abnormality averages are kept (friction does not
+    /// change in a gap), their blocks started again.
+    #[cold]
+    fn start_again_after_gap(&mut self, t: f64, gap_s: f64) {
+        let start = &self.thermal_start;
+        for (axis, fresh) in self.feed.iter_mut().zip(&start.feed) {
+            let abnormality = axis.abnormality.take();
+            *axis = fresh.clone();
+            axis.abnormality = abnormality;
+        }
+        self.room = start.room.clone();
+        self.coolant_lags = start.coolant_lags.clone();
+        let feed = self.feed.iter_mut().map(|a| &mut a.abnormality);
+        let spindles = self.spindles.iter_mut().map(|s| &mut s.abnormality);
+        for abnormality in feed.chain(spindles).flatten() {
+            abnormality.start_blocks_again();
+        }
+        let mut across = Vec::new();
+        for spindle in &mut self.spindles {
+            if let Some(origin) = spindle.elongation_origin {
+                spindle.elongation_origin = Some(ElongationOrigin::AcrossGap {
+                    time_s: origin.time_s(),
+                    gap_end_s: t,
+                    gap_s,
+                });
+                across.push(spindle.axis.to_string());
+            }
+        }
+        let elongation = match across.as_slice() {
+            [] => String::new(),
+            axes => format!(
+                "; the {} elongation stepped over it and counts from where it did, but its \
+                 growth in the gap is unknown: measure the tool before its thermal offset is \
+                 used again",
+                axes.join(", ")
+            ),
+        };
+        self.notes.push(format!(
+            "a gap of {gap_s:.0} s in the frames before machine time {t:.1} s, longer than the \
+             {:.0} s the estimators step over: what the machine did in it is unknown, so the \
+             parts' heat and the lags started again as at a first frame{elongation}",
+            self.longest_step_s
+        ));
+        self.previous_time = None;
     }
 
     /// Says, for each axis whose stator was above the room in the first frame by more than
@@ -709,7 +817,12 @@ impl EstimatorPipeline {
     /// profile's warm start or (a profile calibrated without one) at rest, a spindle's at rest
     /// (it has no warm start). Heat started at rest reads low until it has built up.
     #[cold]
-    fn note_warm_start(&mut self, frame: &[f64], ambient_C: f64) {
+    fn note_warm_start(&mut self, frame: &[f64], ambient_C: f64, after_gap: bool) {
+        let first_frame = if after_gap {
+            "the first frame after the gap"
+        } else {
+            "the first frame"
+        };
         let mut notes = Vec::new();
         for axis in &self.feed {
             let stator_C = frame[axis.channels.stator];
@@ -726,7 +839,7 @@ impl EstimatorPipeline {
             };
             let a = axis.axis;
             let warm = format!(
-                "{a}: the machine was warm at the first frame (stator {excess:.1} K above the room)"
+                "{a}: the machine was warm at {first_frame} (stator {excess:.1} K above the room)"
             );
             let beyond = seeded
                 .iter()
@@ -760,7 +873,12 @@ impl EstimatorPipeline {
                 (false, false) => format!("{warm}: {seeded_note}; but {at_rest_note}"),
             });
         }
-        for spindle in self.spindles.iter().filter(|s| s.elongation.is_some()) {
+        // After a gap the elongation stepped over it rather than starting again.
+        let starting = self
+            .spindles
+            .iter()
+            .filter(|s| !after_gap && s.elongation.is_some());
+        for spindle in starting {
             if let Some(excess) = warm_excess(frame[spindle.channels.stator], ambient_C) {
                 notes.push(format!(
                     "{}: the spindle was warm at the first frame (stator {excess:.1} K above the \
@@ -1173,7 +1291,7 @@ fn uses_ambient(models: &AxisModels) -> bool {
 mod tests {
     use super::*;
     use crate::estimators::models::LinearModel;
-    use crate::estimators::state::{Clock, MAX_RESUME_GAP_S, Resume};
+    use crate::estimators::state::{Clock, Resume};
     use crate::signal::Recording;
     use crate::sim::{ScenarioKind, TwinConfig, simulate};
 
@@ -1623,5 +1741,86 @@ mod tests {
             .unwrap();
         assert!(mean_error(&resumed, elongation) < 0.5);
         assert!(mean_error(&fresh, elongation) > 10.0);
+    }
+
+    /// A gap in the frames longer than five minutes (a link down, a piece of the recording
+    /// missing) starts the feed axes' heat, their lags and the room's and coolant's as at a
+    /// first frame: after it every feed-axis estimate is the one a pipeline started at that
+    /// frame gives. The elongation steps over it and counts on from the first frame, known no
+    /// more; the abnormality averages are kept. A gap of five minutes is stepped over.
+    #[test]
+    fn a_gap_in_the_frames_longer_than_five_minutes_starts_the_heat_again() {
+        let profile = MachineProfile::twin_calibrated().unwrap();
+        let recording = shift_at_1_hz();
+        let schema = recording.schema();
+        let end = recording.len();
+        let columns: Vec<String> = EstimatorPipeline::new(&profile, schema)
+            .unwrap()
+            .outputs()
+            .into_iter()
+            .map(|o| o.column)
+            .collect();
+        let feed_axis = |c: &String| c.starts_with("est.X.") && !c.contains("abnormality");
+        let column = |name: &str| columns.iter().position(|c| c == name).unwrap();
+        let elongation = column("est.S.elongation_um");
+        for (gap_from, back_at) in [(7200, 7801), (7200, 7499)] {
+            let gap_s = (back_at - gap_from + 1) as f64;
+            let mut gappy = EstimatorPipeline::new(&profile, schema).unwrap();
+            run(&mut gappy, &recording, 0..gap_from);
+            let after = run(&mut gappy, &recording, back_at..end);
+            let mut fresh = EstimatorPipeline::new(&profile, schema).unwrap();
+            let fresh = run(&mut fresh, &recording, back_at..end);
+            let same = |j: usize| after.iter().zip(&fresh).all(|(a, b)| a[j] == b[j]);
+            let restarted: Vec<&String> = (0..columns.len())
+                .filter(|&j| feed_axis(&columns[j]) && same(j))
+                .map(|j| &columns[j])
+                .collect();
+            let feed_columns = columns.iter().filter(|c| feed_axis(c)).count();
+            assert!(!same(elongation), "the elongation steps over the gap");
+            let origin = gappy.elongation_origins()[0].1.expect("counted");
+            if gap_s > MAX_RESUME_GAP_S {
+                assert_eq!(restarted.len(), feed_columns, "{restarted:?}");
+                assert_eq!(
+                    origin,
+                    ElongationOrigin::AcrossGap {
+                        time_s: 0.0,
+                        gap_end_s: back_at as f64,
+                        gap_s,
+                    }
+                );
+                assert!(!origin.is_known());
+                let note = format!("a gap of {gap_s:.0} s in the frames before machine time");
+                assert!(
+                    gappy.notes().iter().any(|n| n.contains(&note)),
+                    "{:?}",
+                    gappy.notes()
+                );
+                // The abnormality averages carried over: the score is not a fresh start's.
+                assert_ne!(
+                    format!("{:?}", gappy.abnormality_scores()),
+                    format!("{:?}", fresh_scores(&profile, &recording, back_at)),
+                );
+            } else {
+                // Stepped over: only the split of a frame's torque, which holds no state,
+                // equals a fresh start's.
+                assert!(
+                    restarted.iter().all(|c| c.contains("torque")),
+                    "{restarted:?}"
+                );
+                assert_eq!(origin, ElongationOrigin::FirstFrameAtRest { time_s: 0.0 });
+                assert!(gappy.notes().is_empty(), "{:?}", gappy.notes());
+            }
+        }
+    }
+
+    /// The abnormality scores of a pipeline started at row `from` of `recording`, at its end.
+    fn fresh_scores(
+        profile: &MachineProfile,
+        recording: &Recording,
+        from: usize,
+    ) -> Vec<(AxisId, AbnormalityScore)> {
+        let mut fresh = EstimatorPipeline::new(profile, recording.schema()).unwrap();
+        run(&mut fresh, recording, from..recording.len());
+        fresh.abnormality_scores()
     }
 }

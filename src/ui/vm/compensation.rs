@@ -146,6 +146,17 @@ pub fn elongation_counted_from(state: &HmiState, axis: AxisId) -> Result<String,
              {}, so its growth before then is unknown: {measure}",
             machine_time(time_s)
         )),
+        Some(ElongationOrigin::AcrossGap {
+            time_s,
+            gap_end_s,
+            gap_s,
+        }) => Err(format!(
+            "counted from {}, but the frames stopped for {} before {}, and how far the spindle \
+             grew or shrank then is unknown: {measure}",
+            machine_time(time_s),
+            crate::ui::vm::duration(gap_s),
+            machine_time(gap_end_s)
+        )),
         Some(ElongationOrigin::FirstFrameUnread { time_s }) => Err(format!(
             "no room or spindle stator reading at the estimates' start ({}) says whether the \
              spindle was at rest: {measure}",
