@@ -879,8 +879,9 @@ fn compensation_proposals_come_from_the_estimates() {
 }
 
 /// The thermal offset corrects the tool length measured when the elongation started counting:
-/// an estimate that started on a warm spindle does not know the growth before it, so its
-/// offset is shown but cannot be used, and the warm-up step says what to do.
+/// an estimate that started on a warm spindle does not know the growth before it, nor one whose
+/// frames stopped for more than five minutes the growth in the gap, so its offset is shown but
+/// cannot be used, and the warm-up step says what to do.
 #[test]
 fn a_thermal_offset_is_proposed_only_from_a_known_tool_length() {
     use servosight::ui::vm::warmup::StepStatus;
@@ -906,6 +907,14 @@ fn a_thermal_offset_is_proposed_only_from_a_known_tool_length() {
         (
             Some(ElongationOrigin::FirstFrameUnread { time_s: 3.0 }),
             Some("no room or spindle stator reading"),
+        ),
+        (
+            Some(ElongationOrigin::AcrossGap {
+                time_s: 0.0,
+                gap_end_s: 700.0,
+                gap_s: 600.0,
+            }),
+            Some("the frames stopped for 10 min 00 s before machine time 700.0 s"),
         ),
         (None, Some("not yet counted a frame")),
     ];

@@ -344,6 +344,9 @@ pub struct EstimatorPipeline {
     thermal_start: Box<ThermalStart>,
     /// The longest gap in the frames the estimators step over ([`MAX_RESUME_GAP_S`]).
     longest_step_s: f64,
+    /// The room's lags as the spindles read them, once a gap started the feed axes' room lags
+    /// again (the elongation steps over gaps); until then the spindles read [`Self::room`].
+    spindle_room: Option<RoomLags>,
     /// The profile's name and its calibration's fingerprint, which a saved state must carry
     /// (`None`: the calibration cannot be fingerprinted, and no state is saved or taken up).
     profile_name: String,
@@ -589,6 +592,7 @@ impl EstimatorPipeline {
             notes,
             thermal_start,
             longest_step_s: MAX_RESUME_GAP_S,
+            spindle_room: None,
             profile_name: profile.name.clone(),
             calibration_sha256: calibration_fingerprint(calibration),
         })
@@ -617,16 +621,21 @@ impl EstimatorPipeline {
     /// Updates every estimator with one frame (column 0 is `time_s`).
     pub fn update(&mut self, frame: &[f64]) {
         let t = frame[0];
-        let gap_s = self.previous_time.map_or(0.0, |p| t - p);
-        let after_gap = gap_s > self.longest_step_s;
+        // The step since the last frame, which the spindles take even across a gap.
+        let step_s = self.previous_time.map_or(0.0, |p| (t - p).max(0.0));
+        let after_gap = step_s > self.longest_step_s;
         if after_gap {
-            self.start_again_after_gap(t, gap_s);
+            self.start_again_after_gap(t, step_s);
         }
         let first = self.previous_time.is_none();
-        let dt = self.previous_time.map_or(0.0, |p| (t - p).max(0.0));
+        let dt = if first { 0.0 } else { step_s };
         self.previous_time = Some(t);
         let ambient = self.ambient.map_or(f64::NAN, |i| frame[i]);
         let room = self.room.update(ambient, dt);
+        let spindle_room = match &mut self.spindle_room {
+            Some(lags) => lags.update(ambient, step_s),
+            None => room,
+        };
         let coolant = self.coolant.map_or(f64::NAN, |i| frame[i]);
         let coolant_lags = self.coolant_lags.update(coolant, dt);
         let cutting = self.cut_depth.is_some_and(|i| frame[i] > 0.0);
@@ -719,9 +728,9 @@ impl EstimatorPipeline {
                     load_pct: load,
                     current_A: c.current.map_or(f64::NAN, |i| frame[i]),
                     coolant_on: coolant,
-                    room,
+                    room: spindle_room,
                 };
-                spindle.estimate.elongation_um = elongation.update(&inputs, dt);
+                spindle.estimate.elongation_um = elongation.update(&inputs, step_s);
                 // The estimate counts from its first finite value, as the estimator's zero
                 // does.
                 if spindle.elongation_origin.is_none() && spindle.estimate.elongation_um.is_finite()
@@ -776,7 +785,8 @@ impl EstimatorPipeline {
             *axis = fresh.clone();
             axis.abnormality = abnormality;
         }
-        self.room = start.room.clone();
+        let stepping = std::mem::replace(&mut self.room, start.room.clone());
+        self.spindle_room.get_or_insert(stepping);
         self.coolant_lags = start.coolant_lags.clone();
         let feed = self.feed.iter_mut().map(|a| &mut a.abnormality);
         let spindles = self.spindles.iter_mut().map(|s| &mut s.abnormality);
@@ -1232,6 +1242,7 @@ impl WalkState for EstimatorPipeline {
             spindle.elongation.walk_state(walk);
             spindle.abnormality.walk_state(walk);
         }
+        walk.optional_state(&mut self.spindle_room);
     }
 }
 
@@ -1777,6 +1788,18 @@ mod tests {
                 .collect();
             let feed_columns = columns.iter().filter(|c| feed_axis(c)).count();
             assert!(!same(elongation), "the elongation steps over the gap");
+            // Exactly as a pipeline that steps over every gap has it.
+            let mut stepping = EstimatorPipeline::new(&profile, schema).unwrap();
+            stepping.step_over_gaps_up_to(f64::INFINITY);
+            run(&mut stepping, &recording, 0..gap_from);
+            let stepped = run(&mut stepping, &recording, back_at..end);
+            let column_of = |rows: &[Vec<Option<f64>>], j: usize| -> Vec<Option<f64>> {
+                rows.iter().map(|r| r[j]).collect()
+            };
+            assert_eq!(
+                column_of(&after, elongation),
+                column_of(&stepped, elongation)
+            );
             let origin = gappy.elongation_origins()[0].1.expect("counted");
             if gap_s > MAX_RESUME_GAP_S {
                 assert_eq!(restarted.len(), feed_columns, "{restarted:?}");
@@ -1794,6 +1817,21 @@ mod tests {
                     gappy.notes().iter().any(|n| n.contains(&note)),
                     "{:?}",
                     gappy.notes()
+                );
+                // A state saved after the gap goes on as the pipeline does (the spindles' own
+                // room lags included).
+                let mut through = EstimatorPipeline::new(&profile, schema).unwrap();
+                run(&mut through, &recording, 0..gap_from);
+                let saved_at = back_at + 600;
+                run(&mut through, &recording, back_at..saved_at);
+                let mut frame = Vec::new();
+                recording.row_into(saved_at - 1, &mut frame);
+                let saved = through.save_state(&frame).unwrap();
+                let mut resumed = EstimatorPipeline::new(&profile, schema).unwrap();
+                resumed.restore_state(&saved).unwrap();
+                assert_eq!(
+                    run(&mut resumed, &recording, saved_at..end),
+                    after[saved_at - back_at..]
                 );
                 // The abnormality averages carried over: the score is not a fresh start's.
                 assert_ne!(

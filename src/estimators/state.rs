@@ -20,8 +20,9 @@ use crate::estimators::models::Calibration;
 use crate::estimators::pipeline::ElongationOrigin;
 use crate::signal::{AxisId, Schema};
 
-/// The version of [`SavedState`]'s layout; a file of another version is not taken up.
-pub const STATE_FORMAT: u32 = 1;
+/// The version of [`SavedState`]'s layout; a file of another version is not taken up. 2: the
+/// spindles' own room lags after a gap in the frames.
+pub const STATE_FORMAT: u32 = 2;
 
 /// The longest break between the last frame saved and the first frame of the next session
 /// (machine time, or wall-clock time where the clock started again) over which the state is
