@@ -652,15 +652,11 @@ fn write_pieces(dir: &Path, rows: usize, starts: &[usize]) -> Vec<std::path::Pat
         .zip(ends)
         .enumerate()
         .map(|(k, (&start, end))| {
-            let name = match k {
-                0 => "r.csv".to_string(),
-                k => format!("r-{k:04}.csv"),
-            };
+            let path = servosight::signal::piece_path(&dir.join("r.csv"), k as u32);
             let mut text = String::from("# machine: replay-test\ntime_s,X.speed_rpm\n");
             for i in start..end {
                 text.push_str(&format!("{},{}\n", i as f64 / 100.0, i));
             }
-            let path = dir.join(name);
             std::fs::write(&path, text).unwrap();
             path
         })

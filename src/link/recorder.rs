@@ -19,6 +19,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use super::Frame;
+use crate::signal::pieces::{PART_KEY, RECORDING_KEY};
 use crate::signal::{RecordingError, RecordingWriter, Schema};
 
 /// Column holding the controller's sequence counter of each row.
@@ -203,7 +204,9 @@ impl Recorder {
             written: Arc::clone(&self.written),
         };
         let mut metadata = self.config.metadata.clone();
-        metadata.push(("part".into(), self.part.to_string()));
+        let first = self.config.path.file_name().unwrap_or_default();
+        metadata.push((RECORDING_KEY.into(), first.to_string_lossy().into_owned()));
+        metadata.push((PART_KEY.into(), self.part.to_string()));
         let mut writer = RecordingWriter::new(counting, &source, &metadata, &self.schema)?;
         // The header goes to disk at once: a recorder killed in its first second still leaves
         // a readable (empty) recording.

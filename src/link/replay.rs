@@ -43,11 +43,11 @@ impl Default for ReplayOptions {
 impl ControllerLink {
     /// Replays a recording: one file, or the pieces of one recording in the order they were
     /// recorded (the recorder starts a new file every hour, `shift.csv`, `shift-0001.csv`, …),
-    /// read as one ([`RecordingPieces`]). The first piece's metadata and header are read now, so
-    /// a missing or broken first file is reported here; a bad row later, a later piece with other
-    /// columns or one that starts before the piece before it ends, ends the replay with the
-    /// error, which names the file, in the status, after every row before it was delivered.
-    /// A seek may go to any piece.
+    /// read as one ([`RecordingPieces`]). Every piece's header is read now, so a missing or
+    /// broken file, or a piece with other columns, is reported here; a bad row later, or a
+    /// piece that starts before the piece before it ends, ends the replay with the error, which
+    /// names the file, in the status, after every row before it was delivered. A seek may go
+    /// to any piece.
     ///
     /// The frames have exactly the file's columns. A recording without `cut_depth_mm` (older
     /// files, or ones from a controller that does not publish it) stays without it: no depth

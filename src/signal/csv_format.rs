@@ -263,11 +263,22 @@ impl<R: Read> RecordingReader<R> {
     /// read is or may stop it. `observe` returning `false` stops the read with
     /// [`RecordingError::Stopped`].
     pub fn read_observed(
-        mut self,
+        self,
         limit: usize,
         block_s: Option<f64>,
         observe: &mut dyn FnMut(u64) -> bool,
     ) -> Result<Recording, RecordingError> {
+        self.read_observed_counting(limit, block_s, observe)
+            .map(|(recording, _)| recording)
+    }
+
+    /// [`Self::read_observed`], with the number of rows read (before any averaging).
+    pub(super) fn read_observed_counting(
+        mut self,
+        limit: usize,
+        block_s: Option<f64>,
+        observe: &mut dyn FnMut(u64) -> bool,
+    ) -> Result<(Recording, u64), RecordingError> {
         if let Some(block_s) = block_s
             && !(block_s.is_finite() && block_s > 0.0)
         {
@@ -345,7 +356,7 @@ impl<R: Read> RecordingReader<R> {
         if let Some(block_s) = block_s {
             recording.set_metadata(AVERAGED_OVER_S, &block_s.to_string());
         }
-        Ok(recording)
+        Ok((recording, rows))
     }
 
     /// The file line of the row read last.

@@ -120,8 +120,8 @@ impl RecordingPieces {
     /// [`RecordingReader::read_observed`] reads a file (whole, or averaged over `block_s`
     /// blocks, which are anchored at time 0, so a block a piece boundary cuts becomes two rows),
     /// at most `limit` rows in all, with the same checks as [`Self::read_row`] between pieces.
-    /// `observe` hears each piece's rows read so far. For a reader that has read rows already,
-    /// only the rest of the current piece and the pieces after it are kept.
+    /// `observe` hears the rows read so far in all the pieces. For a reader that has read rows
+    /// already, only the rest of the current piece and the pieces after it are kept.
     pub fn read_observed(
         self,
         limit: usize,
@@ -140,9 +140,14 @@ impl RecordingPieces {
         let mut columns: Vec<Vec<f64>> = vec![Vec::new(); schema.len()];
         // The first piece's, with what its read adds (how it was averaged).
         let mut metadata: Option<Vec<(String, String)>> = None;
+        // The rows read in the pieces before this one.
+        let mut rows_before = 0;
         loop {
             let first_line = reader.lines_before_header + 2;
-            let part = reader.read_observed(limit - columns[0].len(), block_s, observe)?;
+            let mut counted = |rows: u64| observe(rows_before + rows);
+            let (part, rows) =
+                reader.read_observed_counting(limit - columns[0].len(), block_s, &mut counted)?;
+            rows_before += rows;
             if let Some(&time_s) = part.time().first() {
                 in_order(&paths, at, first_line, time_s, last)?;
             }
@@ -233,47 +238,88 @@ pub fn read_pieces(paths: &[PathBuf]) -> Result<Recording, RecordingError> {
     RecordingPieces::open(paths)?.read_observed(usize::MAX, None, &mut |_| true)
 }
 
-/// The name a recorder gives piece `part` of the recording it started at `first`: `first`
-/// itself for part 0, then `<stem>-0001.<ext>`, `<stem>-0002.<ext>`, ….
-pub fn piece_path(first: &Path, part: u32) -> PathBuf {
-    if part == 0 {
-        return first.to_path_buf();
-    }
+/// Metadata key naming, in every piece a recorder writes, the first piece's file (which
+/// names the recording): pieces another run left beside it under the same names are not its.
+pub const RECORDING_KEY: &str = "recording";
+
+/// Metadata key holding a piece's number (0 for the first).
+pub const PART_KEY: &str = "part";
+
+/// The stem and extension a recorder names later pieces with: the first piece's, `recording`
+/// and `csv` where it has none.
+fn stem_and_extension(first: &Path) -> (String, String) {
     let stem = first
         .file_stem()
         .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
     let extension = first
         .extension()
         .map_or_else(|| "csv".into(), |e| e.to_string_lossy().into_owned());
+    (stem, extension)
+}
+
+/// The name a recorder gives piece `part` of the recording it started at `first`: `first`
+/// itself for part 0, then `<stem>-0001.<ext>`, `<stem>-0002.<ext>`, ….
+pub fn piece_path(first: &Path, part: u32) -> PathBuf {
+    if part == 0 {
+        return first.to_path_buf();
+    }
+    let (stem, extension) = stem_and_extension(first);
     first.with_file_name(format!("{stem}-{part:04}.{extension}"))
 }
 
 /// The pieces a recorder continued the recording `first` in, as [`piece_path`] names them,
 /// that are in `first`'s directory, in the order of their numbers (a number may be missing: a
-/// recorder skips a name an earlier run took). Lists the directory, so call it off the UI
-/// thread.
+/// recorder skips a name an earlier run took). Where `first` says which recording it is
+/// ([`RECORDING_KEY`], as the recorder writes), a piece that says it is another's, or another
+/// part than its name, is left out: an earlier run's pieces under the same names are not this
+/// one's. A piece whose header cannot be read is kept, so that reading it names the fault
+/// instead of a piece going missing unsaid. Lists the directory and reads headers, so call it
+/// off the UI thread.
 pub fn later_pieces(first: &Path) -> io::Result<Vec<PathBuf>> {
-    let (Some(stem), Some(extension)) = (first.file_stem(), first.extension()) else {
-        return Ok(Vec::new());
-    };
-    let prefix = format!("{}-", stem.to_string_lossy());
-    let suffix = format!(".{}", extension.to_string_lossy());
+    let (stem, extension) = stem_and_extension(first);
+    let prefix = format!("{stem}-");
+    let suffix = format!(".{extension}");
     let directory = match first.parent() {
         Some(parent) if !parent.as_os_str().is_empty() => parent,
         _ => Path::new("."),
     };
+    let header = |path: &Path| RecordingReader::open(path).map(|r| r.metadata().to_vec());
+    let value = |metadata: &[(String, String)], key: &str| {
+        metadata
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.clone())
+    };
+    let recording = header(first)
+        .ok()
+        .and_then(|metadata| value(&metadata, RECORDING_KEY));
     let mut numbered = Vec::new();
     for entry in std::fs::read_dir(directory)? {
         let file_name = entry?.file_name();
         let name = file_name.to_string_lossy();
+        // Only the recorder's own spelling of a number: `-0001`, `-12345`, not `-00001`.
         let number = name
             .strip_prefix(&prefix)
             .and_then(|rest| rest.strip_suffix(&suffix))
-            .filter(|digits| digits.len() >= 4 && digits.bytes().all(|b| b.is_ascii_digit()))
-            .and_then(|digits| digits.parse::<u32>().ok())
-            .filter(|&n| n > 0);
-        if let Some(number) = number {
-            numbered.push((number, first.with_file_name(&file_name)));
+            .and_then(|digits| {
+                let n = digits.parse::<u32>().ok().filter(|&n| n > 0)?;
+                (digits == format!("{n:04}")).then_some(n)
+            });
+        let Some(number) = number else {
+            continue;
+        };
+        let path = first.with_file_name(&file_name);
+        let ours = recording
+            .as_ref()
+            .is_none_or(|recording| match header(&path) {
+                Ok(metadata) => {
+                    value(&metadata, RECORDING_KEY).as_ref() == Some(recording)
+                        && value(&metadata, PART_KEY) == Some(number.to_string())
+                }
+                Err(_) => true,
+            });
+        if ours {
+            numbered.push((number, path));
         }
     }
     numbered.sort();
@@ -474,18 +520,25 @@ mod tests {
 
     /// The recorder's names for a recording's pieces are found beside its first file in the
     /// order of their numbers, a number skipped; other files, another recording's pieces and
-    /// names that only look alike are not taken.
+    /// names that only look alike are not taken. A first file without an extension has its
+    /// pieces named `.csv`, as the recorder names them.
     #[test]
     fn the_pieces_a_recorder_continued_a_recording_in_are_found_in_order() {
         let dir = tempfile::tempdir().unwrap();
         let first = dir.path().join("shift.csv");
         assert_eq!(piece_path(&first, 0), first);
         assert_eq!(piece_path(&first, 2), dir.path().join("shift-0002.csv"));
+        assert_eq!(
+            piece_path(&first, 12345),
+            dir.path().join("shift-12345.csv")
+        );
         for name in [
             "shift.csv",
             "shift-0003.csv",
             "shift-0001.csv",
             "shift-0012.csv",
+            "shift-12345.csv",
+            "shift-00002.csv",
             "shift-0000.csv",
             "shift-01.csv",
             "shift-0002.csv.partial",
@@ -496,26 +549,62 @@ mod tests {
         ] {
             std::fs::write(dir.path().join(name), "time_s\n").unwrap();
         }
-        let found = later_pieces(&first).unwrap();
-        let names: Vec<String> = found
-            .iter()
-            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
-            .collect();
+        let names = |found: Vec<PathBuf>| -> Vec<String> {
+            assert!(found.iter().all(|p| p.parent() == Some(dir.path())));
+            found
+                .iter()
+                .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+                .collect()
+        };
         assert_eq!(
-            names,
-            ["shift-0001.csv", "shift-0003.csv", "shift-0012.csv"]
+            names(later_pieces(&first).unwrap()),
+            [
+                "shift-0001.csv",
+                "shift-0003.csv",
+                "shift-0012.csv",
+                "shift-12345.csv"
+            ]
         );
-        assert!(found.iter().all(|p| p.parent() == Some(dir.path())));
         assert!(
             later_pieces(&dir.path().join("shift-0003.csv"))
                 .unwrap()
                 .is_empty()
         );
         assert!(later_pieces(&dir.path().join("missing").join("a.csv")).is_err());
+
+        let bare = dir.path().join("run");
+        std::fs::write(&bare, "time_s\n").unwrap();
+        std::fs::write(dir.path().join("run-0001.csv"), "time_s\n").unwrap();
+        assert_eq!(names(later_pieces(&bare).unwrap()), ["run-0001.csv"]);
+    }
+
+    /// Where the first piece says which recording it is, as the recorder writes, only the
+    /// pieces that say they are its, under their own number, are taken; one whose header
+    /// cannot be read is kept, so that reading it names the fault.
+    #[test]
+    fn pieces_of_another_recording_under_the_same_names_are_not_taken() {
+        let dir = tempfile::tempdir().unwrap();
+        let piece = |name: &str, recording: &str, part: &str| {
+            let text = format!("# {RECORDING_KEY}: {recording}\n# {PART_KEY}: {part}\ntime_s\n");
+            std::fs::write(dir.path().join(name), text).unwrap();
+        };
+        piece("day.csv", "day.csv", "0");
+        piece("day-0001.csv", "day.csv", "1");
+        piece("day-0002.csv", "an-earlier-day.csv", "2");
+        piece("day-0003.csv", "day.csv", "7");
+        std::fs::write(dir.path().join("day-0004.csv"), "").unwrap();
+        piece("day-0005.csv", "day.csv", "5");
+        let found: Vec<String> = later_pieces(&dir.path().join("day.csv"))
+            .unwrap()
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(found, ["day-0001.csv", "day-0004.csv", "day-0005.csv"]);
     }
 
     /// A read's progress counts the bytes of every piece against their size at open (read
-    /// ahead by a buffer of 64 KiB, a tenth of these pieces).
+    /// ahead by a buffer of 64 KiB, a tenth of these pieces), and its observer the rows of
+    /// every piece.
     #[test]
     fn the_progress_of_a_read_counts_every_piece() {
         let dir = tempfile::tempdir().unwrap();
@@ -535,5 +624,17 @@ mod tests {
             .unwrap();
         assert_eq!(recording.len(), 30_000);
         assert_eq!(progress.fraction(), 1.0);
+        // The rows the observer hears count on from piece to piece.
+        let mut heard = Vec::new();
+        RecordingPieces::open(&paths)
+            .unwrap()
+            .read_observed(usize::MAX, None, &mut |rows| {
+                heard.push(rows);
+                true
+            })
+            .unwrap();
+        let every = RecordingReader::<File>::OBSERVED_EVERY;
+        assert!(heard.windows(2).all(|w| w[0] < w[1]), "{heard:?}");
+        assert_eq!(heard.last(), Some(&(40_000 + 2 * every)), "{heard:?}");
     }
 }
