@@ -273,3 +273,78 @@ fn inspect_reads_a_file_whose_last_line_was_cut_short() {
     assert!(!run.status.success());
     assert!(stderr(&run).contains("line 2"), "{}", stderr(&run));
 }
+
+/// The pieces of a recording are summarised as one: the rows and the duration of all of them,
+/// a piece missing between two others shown as a gap, a last line cut short in the last piece
+/// still forgiven (and only there), and pieces out of order refused with the file named.
+#[test]
+fn inspect_summarises_the_pieces_of_a_recording_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("shift.csv");
+    let piece = |k: u32, from: u32, to: u32, tail: &str| {
+        let path = servosight::signal::piece_path(&first, k);
+        let mut text = format!("# part: {k}\ntime_s,X.speed_rpm\n");
+        for t in from..to {
+            text.push_str(&format!("{t},{}\n", t % 7));
+        }
+        text.push_str(tail);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let pieces = [
+        piece(0, 0, 100, ""),
+        piece(1, 100, 200, ""),
+        piece(2, 300, 400, "400,"),
+    ];
+    let summary = |paths: &[&std::path::Path]| {
+        let mut args = vec!["inspect"];
+        args.extend(paths.iter().map(|p| arg(p)));
+        args.extend(["--json", "-"]);
+        servosight(&args)
+    };
+    let run = summary(&[&pieces[0], &pieces[1], &pieces[2]]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stderr(&run).contains("cut short"), "{}", stderr(&run));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+    assert_eq!(report["rows"], 300);
+    assert_eq!(report["duration_s"], 399.0);
+    assert_eq!(report["last_line_cut_short"], true);
+    assert_eq!(report["gaps"][0]["after_s"], 199.0);
+    assert_eq!(report["gaps"][0]["length_s"], 101.0);
+    assert_eq!(report["metadata"][0][1], "0", "the first piece's metadata");
+    assert_eq!(
+        report["file"],
+        format!(
+            "{}, {}, {}",
+            pieces[0].display(),
+            pieces[1].display(),
+            pieces[2].display()
+        )
+    );
+
+    // A cut line is forgiven only at the end of the last piece.
+    let run = summary(&[&pieces[2], &pieces[0]]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains(&pieces[2].display().to_string()),
+        "{}",
+        stderr(&run)
+    );
+    // Out of order, the piece is named.
+    let run = summary(&[&pieces[1], &pieces[0]]);
+    assert!(!run.status.success());
+    let said = stderr(&run);
+    assert!(
+        said.contains(&pieces[0].display().to_string())
+            && said.contains("give the pieces in the order they were recorded"),
+        "{said}"
+    );
+    // Out of order into a cut last piece, too.
+    let run = summary(&[&pieces[1], &pieces[0], &pieces[2]]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("give the pieces in the order they were recorded"),
+        "{}",
+        stderr(&run)
+    );
+}

@@ -1,16 +1,20 @@
-//! `servosight inspect FILE.csv`: what is in a recording, or exactly where it is broken.
+//! `servosight inspect FILE.csv [PIECE.csv…]`: what is in a recording (or in the pieces of
+//! one, read as one), or exactly where it is broken.
 
 use std::path::PathBuf;
 
 use crate::servosight_cli::{out, outln, refuse_overwriting_inputs};
 use anyhow::Context;
-use servosight::signal::{Channel, Recording, RecordingError, RecordingReader};
+use servosight::signal::{Channel, Recording, RecordingError, RecordingPieces};
 
 /// Arguments of `servosight inspect`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The recording to summarise (CSV v1).
-    pub file: PathBuf,
+    /// The recording to summarise (CSV v1); several files are the pieces of one recording,
+    /// summarised as one in the order given (the recorder starts a new piece every hour:
+    /// shift.csv shift-0001.csv …), so a piece missing between them shows as a gap.
+    #[arg(required = true, num_args = 1..)]
+    pub file: Vec<PathBuf>,
     /// Report a gap where the time step exceeds this many median steps.
     #[arg(long, default_value_t = 3.0)]
     pub gap_factor: f64,
@@ -59,7 +63,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
          steps), not {}",
         args.gap_factor
     );
-    refuse_overwriting_inputs(&[&args.file], &[args.json.as_deref()])?;
+    let inputs: Vec<&std::path::Path> = args.file.iter().map(PathBuf::as_path).collect();
+    refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;
     let (mut summary, cut_short) = summarise_allowing_a_cut_last_line(&args.file, args.gap_factor)?;
     if let Some(note) = &cut_short {
         eprintln!("warning: {note}");
@@ -68,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         summary.rows > 0,
         "{} has a header but no data rows: nothing to summarise",
-        args.file.display()
+        RecordingPieces::name(&args.file)
     );
     match &args.json {
         Some(path) => crate::servosight_cli::write_json(path, &summary)?,
@@ -142,41 +147,59 @@ impl SummaryBuilder {
     }
 }
 
-/// Summarises a recording as it is read, never holding it whole; when the only fault is a last
-/// line cut short (a recorder that lost power mid-write), summarises everything before it and
-/// says so. Any other fault is an error as usual.
+/// Summarises a recording (or the pieces of one, as one) as it is read, never holding it
+/// whole; when the only fault is a last line cut short in the last piece (a recorder that lost
+/// power mid-write), summarises everything before it and says so. Any other fault is an error
+/// as usual.
 fn summarise_allowing_a_cut_last_line(
-    path: &std::path::Path,
+    paths: &[PathBuf],
     gap_factor: f64,
 ) -> anyhow::Result<(Summary, Option<RecordingError>)> {
-    let streamed = (|| -> anyhow::Result<Summary> {
-        let mut reader = RecordingReader::open(path)?;
-        let mut builder =
-            SummaryBuilder::new(&path.display().to_string(), reader.schema().names())?;
+    let name = RecordingPieces::name(paths);
+    // Every row of `pieces` into a new summary of `name`.
+    let stream = |pieces: &[PathBuf]| -> anyhow::Result<(SummaryBuilder, Vec<(String, String)>)> {
+        let mut reader = RecordingPieces::open(pieces)?;
+        let metadata = reader.metadata().to_vec();
+        let mut builder = SummaryBuilder::new(&name, reader.schema().names())?;
         let mut row = Vec::new();
         while reader.read_row(&mut row)? {
             builder.push(&row)?;
         }
-        Ok(builder.finish(reader.metadata().to_vec(), gap_factor))
-    })();
-    match streamed {
-        Ok(summary) => Ok((summary, None)),
-        Err(error) => match servosight::link::recorder::read_possibly_truncated(path) {
-            Ok((recording, Some(cut))) => {
-                let mut builder = SummaryBuilder::new(recording.source(), recording.names())?;
-                let mut row = Vec::new();
-                for i in 0..recording.len() {
-                    recording.row_into(i, &mut row);
-                    builder.push(&row)?;
-                }
-                Ok((
-                    builder.finish(recording.metadata().to_vec(), gap_factor),
-                    Some(cut),
-                ))
-            }
-            _ => Err(error).context("cannot read recording"),
-        },
+        Ok((builder, metadata))
+    };
+    let error = match stream(paths) {
+        Ok((builder, metadata)) => return Ok((builder.finish(metadata, gap_factor), None)),
+        Err(error) => error,
+    };
+    let Some((last, earlier)) = paths.split_last() else {
+        return Err(error).context("cannot read recording");
+    };
+    let Ok((cut_piece, Some(cut))) = servosight::link::recorder::read_possibly_truncated(last)
+    else {
+        return Err(error).context("cannot read recording");
+    };
+    let (mut builder, metadata) = if earlier.is_empty() {
+        let builder = SummaryBuilder::new(&name, cut_piece.names())?;
+        (builder, cut_piece.metadata().to_vec())
+    } else {
+        // The pieces before it whole, then what the cut piece holds (every header checked).
+        if let Err(error) = RecordingPieces::open(paths) {
+            return Err(error).context("cannot read recording");
+        }
+        stream(earlier).context("cannot read recording")?
+    };
+    let mut row = Vec::new();
+    for i in 0..cut_piece.len() {
+        cut_piece.row_into(i, &mut row);
+        builder.push(&row).with_context(|| {
+            format!(
+                "{}: this piece starts before the piece before it ends: give the pieces in the \
+                 order they were recorded",
+                last.display()
+            )
+        })?;
     }
+    Ok((builder.finish(metadata, gap_factor), Some(cut)))
 }
 
 fn kind_of(channel: &Channel) -> &'static str {

@@ -65,6 +65,11 @@ impl RecordingPieces {
         self.progress.clone()
     }
 
+    /// The metadata of the piece being read (the first one's until its rows are read).
+    pub fn metadata(&self) -> &[(String, String)] {
+        self.reader.metadata()
+    }
+
     /// The columns (the first piece's, which every piece has).
     pub fn schema(&self) -> &Schema {
         self.reader.schema()
