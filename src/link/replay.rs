@@ -168,19 +168,11 @@ async fn run_replay(
     }
 }
 
-/// Reopens the recording and skips to the first row at or after `target_s`, through the
-/// pieces before it with every check a replay makes (so a seek past a piece out of order
-/// reports it, as playing through would).
+/// Reopens the recording at the first row at or after `target_s`
+/// ([`RecordingPieces::open_at`]: the pieces wholly before it are not read).
 fn seek(
     pieces: &[PathBuf],
     target_s: f64,
 ) -> Result<(RecordingPieces, Option<Vec<f64>>), LinkError> {
-    let mut reader = RecordingPieces::open(pieces)?;
-    let mut row = Vec::new();
-    while reader.read_row(&mut row)? {
-        if row[0] >= target_s {
-            return Ok((reader, Some(row)));
-        }
-    }
-    Ok((reader, None))
+    Ok(RecordingPieces::open_at(pieces, target_s)?)
 }

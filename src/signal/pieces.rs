@@ -59,6 +59,45 @@ impl RecordingPieces {
         })
     }
 
+    /// Opens the pieces for reading from the first row at or after `target_s` (`None` when no
+    /// row is that late), which it returns: a replay's seek. A piece whose next piece starts
+    /// at or before `target_s` holds nothing from there on and is not read, so a seek into the
+    /// eighth hour reads one piece, not eight; the rows of the pieces skipped are not checked
+    /// (their headers are, as [`Self::open`] checks them). Pieces whose first rows are out of
+    /// order are read from the first, so that the read names the one that starts too early.
+    pub fn open_at(
+        paths: &[PathBuf],
+        target_s: f64,
+    ) -> Result<(Self, Option<Vec<f64>>), RecordingError> {
+        let mut pieces = Self::open(paths)?;
+        let mut row = Vec::new();
+        // Each piece's first row's time, for the pieces that have one.
+        let mut firsts = Vec::new();
+        for (i, path) in paths.iter().enumerate() {
+            if RecordingReader::open(path)?.read_row(&mut row)? {
+                firsts.push((i, row[0]));
+            }
+        }
+        let ordered = firsts.windows(2).all(|w| w[0].1 <= w[1].1);
+        let start = firsts
+            .iter()
+            .rev()
+            .find(|&&(_, time_s)| ordered && time_s <= target_s)
+            .map_or(0, |&(i, _)| i);
+        if start > 0 {
+            let names = pieces.reader.schema().names();
+            let read = &pieces.progress.read;
+            pieces.reader = Self::open_piece(&paths[start], &paths[0], names, read)?;
+            pieces.at = start;
+        }
+        while pieces.read_row(&mut row)? {
+            if row[0] >= target_s {
+                return Ok((pieces, Some(row)));
+            }
+        }
+        Ok((pieces, None))
+    }
+
     /// How far the read is: shared, so a job can show it while [`Self::read_observed`] has
     /// the pieces.
     pub fn progress(&self) -> ReadProgress {
@@ -641,5 +680,57 @@ mod tests {
         let every = RecordingReader::<File>::OBSERVED_EVERY;
         assert!(heard.windows(2).all(|w| w[0] < w[1]), "{heard:?}");
         assert_eq!(heard.last(), Some(&(40_000 + 2 * every)), "{heard:?}");
+    }
+
+    /// A seek opens the piece that holds its time and reads on from there through the later
+    /// pieces; the pieces wholly before it are not read (a damaged row in one does not stop
+    /// it), and pieces out of order are read from the first, which names the one too early.
+    #[test]
+    fn a_seek_starts_in_the_piece_that_holds_its_time() {
+        let dir = tempfile::tempdir().unwrap();
+        let rows: Vec<(f64, f64)> = (0..300).map(|i| (i as f64, i as f64)).collect();
+        let paths = write_pieces(dir.path(), "piece", &rows, &[100, 200]);
+        let rest = |(mut pieces, first): (RecordingPieces, Option<Vec<f64>>)| {
+            let mut times: Vec<f64> = first.iter().map(|r| r[0]).collect();
+            let mut row = Vec::new();
+            while pieces.read_row(&mut row).unwrap() {
+                times.push(row[0]);
+            }
+            times
+        };
+        for (target_s, from) in [(150.0, 150), (100.0, 100), (99.5, 100), (-5.0, 0)] {
+            let times = rest(RecordingPieces::open_at(&paths, target_s).unwrap());
+            let expected: Vec<f64> = (from..300).map(f64::from).collect();
+            assert_eq!(times, expected, "seek to {target_s} s");
+        }
+        let (_, none) = RecordingPieces::open_at(&paths, 1000.0).unwrap();
+        assert_eq!(none, None);
+
+        let text = std::fs::read_to_string(&paths[0])
+            .unwrap()
+            .replace("\n50,", "\n50,x");
+        std::fs::write(&paths[0], text).unwrap();
+        assert_eq!(
+            rest(RecordingPieces::open_at(&paths, 250.0).unwrap()).len(),
+            50
+        );
+        let error = RecordingPieces::open_at(&paths, 70.0)
+            .err()
+            .expect("row 50 read");
+        assert!(
+            error.to_string().contains("piece-0.csv: line 53"),
+            "{error}"
+        );
+
+        let shuffled = [paths[1].clone(), paths[0].clone(), paths[2].clone()];
+        let error = RecordingPieces::open_at(&shuffled, 250.0)
+            .err()
+            .expect("out of order");
+        assert!(
+            error
+                .to_string()
+                .contains("give the pieces in the order they were recorded"),
+            "{error}"
+        );
     }
 }
