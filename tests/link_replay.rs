@@ -490,7 +490,7 @@ fn the_hmi_session_says_where_the_spindle_elongation_counts_from() {
 fn write_rows(
     path: &Path,
     recording: &servosight::signal::Recording,
-    rows: std::ops::Range<usize>,
+    rows: impl IntoIterator<Item = usize>,
 ) {
     let mut writer = servosight::signal::csv_format::RecordingWriter::create(
         path,
@@ -716,5 +716,71 @@ fn the_pieces_of_a_recording_replay_as_one_and_a_seek_reaches_any_piece() {
             && error.contains("r-0002.csv")
             && error.contains("give the pieces in the order they were recorded"),
         "{error}"
+    );
+}
+
+/// A replay whose frames stop for ten minutes (a link that was down, a piece missing) says so
+/// once, and the spindle's elongation, which stepped over the gap, no longer counts from a
+/// known tool length: its thermal offset waits for a tool measurement.
+#[test]
+fn an_hmi_session_says_when_its_frames_stopped_for_more_than_five_minutes() {
+    use servosight::estimators::pipeline::ElongationOrigin;
+    use servosight::ui::SourceSpec;
+    use servosight::ui::session::SessionUpdate;
+    let dir = tempfile::tempdir().unwrap();
+    let mut config =
+        servosight::sim::TwinConfig::new(servosight::sim::ScenarioKind::Production, Some(1.5), 4);
+    config.rate_hz = 1.0;
+    let recording = servosight::sim::simulate(config).unwrap();
+    let gappy = dir.path().join("gappy.csv");
+    write_rows(&gappy, &recording, (0..3600).chain(4200..recording.len()));
+    let mut session = twin_profile_session(
+        dir.path(),
+        SourceSpec::Replay {
+            pieces: vec![gappy],
+            options: ReplayOptions {
+                speed: ReplaySpeed::AsFastAsPossible,
+                ..ReplayOptions::default()
+            },
+        },
+    );
+    let end_s = recording.time()[recording.len() - 1];
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let (mut events, mut origin, mut last_s) = (Vec::new(), None, 0.0);
+    while Instant::now() < deadline && last_s < end_s {
+        while let Some(update) = session.try_recv() {
+            match update {
+                SessionUpdate::Frames(batch) => {
+                    if let Some(row) = batch.rows.last() {
+                        last_s = row[0];
+                    }
+                }
+                SessionUpdate::Event(event) => events.push(format!("{event:?}")),
+                SessionUpdate::ElongationOrigins(origins) => {
+                    origin = origins
+                        .iter()
+                        .find(|(axis, _)| *axis == AxisId::S)
+                        .and_then(|(_, o)| *o);
+                }
+                _ => {}
+            }
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert_eq!(
+        last_s, end_s,
+        "the replay ran to its end; it said {events:?}"
+    );
+    let said = "estimators: a gap of 601 s in the frames before machine time 4200.0 s";
+    let gaps: Vec<&String> = events.iter().filter(|e| e.contains(said)).collect();
+    assert_eq!(gaps.len(), 1, "said once: {events:?}");
+    assert!(gaps[0].contains("measure the tool"), "{}", gaps[0]);
+    assert_eq!(
+        origin,
+        Some(ElongationOrigin::AcrossGap {
+            time_s: 0.0,
+            gap_end_s: 4200.0,
+            gap_s: 601.0,
+        })
     );
 }
