@@ -1057,3 +1057,83 @@ fn the_analyses_of_a_recording_read_its_pieces_as_one() {
         );
     }
 }
+
+/// An experiment the recorder cut into pieces (each says, as the recorder writes, which
+/// recording it is a piece of) is calibrated as one experiment: the same profile as from the
+/// whole file, no piece taken for a recording that starts on a warm machine. The same pieces
+/// without that header are two experiments, the second warned of as starting warm.
+#[test]
+fn calibrate_takes_the_pieces_of_an_experiment_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = simulate(
+        dir.path(),
+        "db.csv",
+        &["--scenario", "doe", "--hours", "4", "--seed", "5"],
+    );
+    let whole = simulate(
+        dir.path(),
+        "exp.csv",
+        &["--scenario", "production", "--hours", "3", "--seed", "2"],
+    );
+    let cut = |name: &str, from: f64, until: f64, header: &str| {
+        let path = dir.path().join(name);
+        rows_between(&whole, &path, from, until);
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(&path, format!("{header}{text}")).unwrap();
+        path
+    };
+    let recorded = [
+        cut(
+            "exp-rec.csv",
+            0.0,
+            5400.0,
+            "# recording: exp-rec.csv\n# part: 0\n",
+        ),
+        cut(
+            "exp-rec-0001.csv",
+            5400.0,
+            f64::INFINITY,
+            "# recording: exp-rec.csv\n# part: 1\n",
+        ),
+    ];
+    let plain = [
+        cut("exp-a.csv", 0.0, 5400.0, ""),
+        cut("exp-b.csv", 5400.0, f64::INFINITY, ""),
+    ];
+    let calibrate = |experiments: &[&std::path::Path], name: &str| {
+        let profile = dir.path().join(format!("{name}.toml"));
+        let mut args = vec!["calibrate", "--database", arg(&db), "--experiments"];
+        args.extend(experiments.iter().map(|e| arg(e)));
+        args.extend(["-o", arg(&profile)]);
+        let run = servosight(&args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let text = std::fs::read_to_string(&profile).unwrap();
+        // The models, without the list of the files they were fitted on.
+        let (models, sources): (Vec<&str>, Vec<&str>) =
+            text.lines().partition(|l| !l.starts_with("experiments = "));
+        assert_eq!(sources.len(), 1, "{text}");
+        (models.join("\n"), sources[0].to_string(), stderr(&run))
+    };
+    let (from_whole, _, _) = calibrate(&[&whole], "whole");
+    let (from_pieces, listed, said) = calibrate(&[&recorded[0], &recorded[1]], "pieces");
+    assert!(from_pieces == from_whole, "the pieces fit other models");
+    assert_eq!(
+        listed,
+        format!(
+            "experiments = [\"{}, {}\"]",
+            recorded[0].display(),
+            recorded[1].display()
+        )
+    );
+    assert!(!said.contains("starts on a warm machine"), "{said}");
+    let (from_plain, _, said) = calibrate(&[&plain[0], &plain[1]], "plain");
+    assert!(
+        from_plain != from_whole,
+        "two experiments fit the models of one"
+    );
+    assert!(
+        said.lines()
+            .any(|l| l.contains("exp-b.csv") && l.contains("starts on a warm machine")),
+        "{said}"
+    );
+}

@@ -9,7 +9,7 @@ use servosight::estimators::calibration::{
 };
 use servosight::estimators::models::{AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S};
 use servosight::profile::MachineProfile;
-use servosight::signal::{Recording, read_recording};
+use servosight::signal::{Recording, group_pieces, read_pieces};
 
 /// Arguments of `servosight calibrate`.
 #[derive(Debug, clap::Args)]
@@ -19,10 +19,12 @@ servosight simulate --scenario production --hours 4 --seed 2 -o exp.csv\n  \
 servosight calibrate --database db.csv --experiments exp.csv -o profile.toml --json report.json"
 )]
 pub struct Args {
-    /// Simulation database recordings (CSV v1 with reference columns), repeatable.
+    /// Simulation database recordings (CSV v1 with reference columns), repeatable; the pieces
+    /// a recorder cut one recording into (consecutive, their `# recording:` the same) are one.
     #[arg(long = "database", required = true, num_args = 1..)]
     pub database: Vec<PathBuf>,
-    /// Experiment recordings that correct the database, repeatable.
+    /// Experiment recordings that correct the database, repeatable; the pieces a recorder cut
+    /// one experiment into (consecutive, their `# recording:` the same) are one experiment.
     #[arg(long = "experiments", num_args = 1..)]
     pub experiments: Vec<PathBuf>,
     /// Machine profile to start from (geometry, ratings, limits); default: the twin's machine.
@@ -54,10 +56,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(path) => MachineProfile::load(path)?,
         None => MachineProfile::twin_default(),
     };
+    // The pieces a recorder cut one recording into (its `# recording:` and `# part:`) are read
+    // as that one recording.
     let read_all = |paths: &[PathBuf]| {
-        paths
+        group_pieces(paths)
+            .context("cannot read recording")?
             .iter()
-            .map(|p| read_recording(p).with_context(|| "cannot read recording".to_string()))
+            .map(|group| read_pieces(group).context("cannot read recording"))
             .collect::<anyhow::Result<Vec<_>>>()
     };
     let database = read_all(&args.database)?;

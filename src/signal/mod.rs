@@ -12,5 +12,7 @@ pub use csv_format::{
     write_recording_to,
 };
 pub use error::{Location, RecordingError};
-pub use pieces::{ReadProgress, RecordingPieces, later_pieces, piece_path, read_pieces};
+pub use pieces::{
+    ReadProgress, RecordingPieces, group_pieces, later_pieces, piece_path, read_pieces,
+};
 pub use recording::{Recording, Schema};

@@ -370,6 +370,37 @@ pub fn later_pieces(first: &Path) -> io::Result<Vec<PathBuf>> {
     Ok(numbered.into_iter().map(|(_, path)| path).collect())
 }
 
+/// The recordings in a list of files: a file whose header says it is a later piece of the
+/// recording the file before it belongs to (the same [`RECORDING_KEY`], a greater
+/// [`PART_KEY`], as the recorder writes them) continues that recording; any other file is a
+/// recording of its own. For a command that takes several recordings (calibration
+/// experiments), so that an experiment the recorder cut into hourly pieces counts as one, its
+/// heat accumulated across the cut instead of from rest again. Reads only headers.
+pub fn group_pieces(paths: &[PathBuf]) -> Result<Vec<Vec<PathBuf>>, RecordingError> {
+    let mut groups: Vec<Vec<PathBuf>> = Vec::new();
+    let mut previous: Option<(String, u64)> = None;
+    for path in paths {
+        let metadata = RecordingReader::open(path)?.metadata().to_vec();
+        let value = |key: &str| {
+            metadata
+                .iter()
+                .find(|(k, _)| k == key)
+                .map(|(_, v)| v.clone())
+        };
+        let this = value(RECORDING_KEY).zip(value(PART_KEY).and_then(|p| p.parse::<u64>().ok()));
+        let continues = matches!(
+            (&previous, &this),
+            (Some((recording, part)), Some((now, later))) if recording == now && later > part
+        );
+        match groups.last_mut() {
+            Some(group) if continues => group.push(path.clone()),
+            _ => groups.push(vec![path.clone()]),
+        }
+        previous = this;
+    }
+    Ok(groups)
+}
+
 /// How far a read of pieces is: the bytes read of all of them, against their size when they
 /// were opened.
 #[derive(Debug, Clone)]
@@ -732,5 +763,40 @@ mod tests {
                 .contains("give the pieces in the order they were recorded"),
             "{error}"
         );
+    }
+
+    /// In a list of recordings, a file that says it is the next piece of the recording the
+    /// file before it belongs to continues it; anything else starts a recording of its own.
+    #[test]
+    fn consecutive_pieces_of_one_recording_are_grouped() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = |name: &str, header: &str| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, format!("{header}time_s\n")).unwrap();
+            path
+        };
+        let key = |recording: &str, part: u32| {
+            format!("# {RECORDING_KEY}: {recording}\n# {PART_KEY}: {part}\n")
+        };
+        let a = file("a.csv", &key("r.csv", 0));
+        let b = file("b.csv", &key("r.csv", 1));
+        let c = file("c.csv", "");
+        let d = file("d.csv", &key("r.csv", 2));
+        let e = file("e.csv", &key("s.csv", 0));
+        let f = file("f.csv", &key("s.csv", 0));
+        let g = file("g.csv", &key("s.csv", 3));
+        let groups = group_pieces(&[
+            a.clone(),
+            b.clone(),
+            c.clone(),
+            d.clone(),
+            e.clone(),
+            f.clone(),
+            g.clone(),
+        ])
+        .unwrap();
+        assert_eq!(groups, [vec![a, b], vec![c], vec![d], vec![e], vec![f, g]]);
+        let missing = group_pieces(&[dir.path().join("none.csv")]).unwrap_err();
+        assert!(missing.to_string().contains("none.csv"), "{missing}");
     }
 }
