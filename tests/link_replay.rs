@@ -784,3 +784,43 @@ fn an_hmi_session_says_when_its_frames_stopped_for_more_than_five_minutes() {
         })
     );
 }
+
+/// A replay of the first hour of a recording the recorder continued in later pieces says that
+/// it leaves them out and how to replay the whole; a replay of every piece says nothing of it.
+#[test]
+fn an_hmi_replay_of_one_piece_says_which_later_pieces_it_leaves_out() {
+    use servosight::ui::SourceSpec;
+    let dir = tempfile::tempdir().unwrap();
+    let pieces = write_pieces(dir.path(), 300, &[0, 100, 200]);
+    let session = |given: &[std::path::PathBuf]| {
+        servosight::ui::Session::start(servosight::ui::SessionConfig {
+            source: SourceSpec::Replay {
+                pieces: given.to_vec(),
+                options: ReplayOptions {
+                    speed: ReplaySpeed::AsFastAsPossible,
+                    ..ReplayOptions::default()
+                },
+            },
+            record_dir: None,
+            users_path: dir.path().join("users.toml"),
+            audit_path: dir.path().join("audit.jsonl"),
+            limits: servosight::compensation::CompensationLimits::default(),
+            profile: None,
+            data_dir: dir.path().join("data"),
+        })
+        .expect("session starts")
+    };
+    let said = format!(
+        "replay: the recorder continued {} in {} … {} (2 pieces) beside it that this replay leaves out",
+        pieces[0].display(),
+        pieces[1].display(),
+        pieces[2].display()
+    );
+    let events = events_until(&mut session(&pieces[..1]), &said, Duration::ZERO);
+    assert!(events.iter().any(|e| e.contains(&said)), "{events:?}");
+    let events = events_until(&mut session(&pieces), "end of recording", Duration::ZERO);
+    assert!(
+        !events.iter().any(|e| e.contains("leaves out")),
+        "{events:?}"
+    );
+}

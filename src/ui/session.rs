@@ -222,6 +222,27 @@ pub struct Session {
 
 /// Messages queued from the session to the UI before it has to hold frames back.
 const UPDATE_CHANNEL_CAPACITY: usize = 8192;
+/// What a replay leaves out of the recording it starts: the pieces the recorder continued its
+/// first file in that lie beside it and were not given, so that an operator who opened one
+/// hour of a shift knows the rest is there (`None` when none is left out, or the directory
+/// cannot be listed: the replay itself is not affected).
+fn pieces_left_out(pieces: &[PathBuf]) -> Option<String> {
+    let first = pieces.first()?;
+    let left_out: Vec<PathBuf> = crate::signal::later_pieces(first)
+        .ok()?
+        .into_iter()
+        .filter(|piece| !pieces.contains(piece))
+        .collect();
+    (!left_out.is_empty()).then(|| {
+        format!(
+            "replay: the recorder continued {} in {} beside it that this replay leaves out: \
+             give them after it (in the order recorded) to replay the whole recording",
+            first.display(),
+            crate::signal::RecordingPieces::short_name(&left_out)
+        )
+    })
+}
+
 /// How often the link and recorder state are published and the recorder is flushed.
 const TICK: Duration = Duration::from_millis(100);
 /// Frames held for a UI that is not draining before the oldest are let go (they are on disk).
@@ -305,6 +326,11 @@ impl Session {
             worker.event(EventKind::Condition, Severity::Warning, error);
         }
         if let Some(note) = state_note {
+            worker.event(EventKind::Condition, Severity::Warning, note);
+        }
+        if let SourceSpec::Replay { pieces, .. } = &config.source
+            && let Some(note) = pieces_left_out(pieces)
+        {
             worker.event(EventKind::Condition, Severity::Warning, note);
         }
         // What the estimators cannot do on this link (e.g. no abnormality score without the
