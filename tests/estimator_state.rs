@@ -37,29 +37,41 @@ fn mean_difference(a: &[Vec<Option<f64>>], b: &[Vec<Option<f64>>], j: usize) -> 
     d.iter().sum::<f64>() / d.len().max(1) as f64
 }
 
+/// The estimates the tables compare.
+const COLUMNS: [&str; 7] = [
+    "est.X.motor_flange_temp_C",
+    "est.X.front_bearing_temp_C",
+    "est.X.back_bearing_temp_C",
+    "est.X.nut_temp_C",
+    "est.X.straightness_h_zone_um",
+    "est.X.straightness_v_zone_um",
+    "est.S.elongation_um",
+];
+
+/// Eight hours of the twin's production program at 1 Hz for seeds 1 to 3.
+fn production_shifts() -> Vec<Recording> {
+    (1..=3)
+        .map(|seed| {
+            let mut config = TwinConfig::new(ScenarioKind::Production, Some(8.0), seed);
+            config.rate_hz = 1.0;
+            simulate(config).unwrap()
+        })
+        .collect()
+}
+
 #[test]
-#[ignore = "a table for docs/accuracy.md (about a minute)"]
+#[ignore = "a table for docs/accuracy.md (a few seconds in release)"]
 fn estimates_after_a_break_carried_on_and_afresh() {
     let profile = MachineProfile::twin_calibrated().unwrap();
-    let columns = [
-        "est.X.motor_flange_temp_C",
-        "est.X.front_bearing_temp_C",
-        "est.X.back_bearing_temp_C",
-        "est.X.nut_temp_C",
-        "est.X.straightness_h_zone_um",
-        "est.X.straightness_v_zone_um",
-        "est.S.elongation_um",
-    ];
+    let columns = COLUMNS;
     println!("| break | {} |", columns.join(" | "));
     println!("|---|{}", "---|".repeat(columns.len()));
+    let recordings = production_shifts();
     for break_s in [60usize, 120, 179, 240, 299] {
         // Per column: (carried on, afresh) summed over cases.
         let mut sums = vec![(0.0, 0.0); columns.len()];
         let mut cases = 0;
-        for seed in 1..=3 {
-            let mut config = TwinConfig::new(ScenarioKind::Production, Some(8.0), seed);
-            config.rate_hz = 1.0;
-            let recording = simulate(config).unwrap();
+        for recording in &recordings {
             let schema = recording.schema();
             for saved_at in [2 * 3600, 4 * 3600, 6 * 3600] {
                 let back_at = saved_at + break_s;
@@ -107,27 +119,13 @@ fn estimates_after_a_break_carried_on_and_afresh() {
 /// that saw every frame, over the hour after the gap. Also the elongation's worst error
 /// stepped over.
 #[test]
-#[ignore = "a table for docs/accuracy.md (about a minute)"]
+#[ignore = "a table for docs/accuracy.md (a few seconds in release)"]
 fn estimates_after_a_gap_in_the_frames_stepped_over_and_started_again() {
     let profile = MachineProfile::twin_calibrated().unwrap();
-    let columns = [
-        "est.X.motor_flange_temp_C",
-        "est.X.front_bearing_temp_C",
-        "est.X.back_bearing_temp_C",
-        "est.X.nut_temp_C",
-        "est.X.straightness_h_zone_um",
-        "est.X.straightness_v_zone_um",
-        "est.S.elongation_um",
-    ];
+    let columns = COLUMNS;
     println!("| gap | {} | elongation, worst |", columns.join(" | "));
     println!("|---|{}---|", "---|".repeat(columns.len()));
-    let recordings: Vec<Recording> = (1..=3)
-        .map(|seed| {
-            let mut config = TwinConfig::new(ScenarioKind::Production, Some(8.0), seed);
-            config.rate_hz = 1.0;
-            simulate(config).unwrap()
-        })
-        .collect();
+    let recordings = production_shifts();
     for gap_s in [120usize, 300, 600, 1200, 1800, 3600] {
         // Per column: (stepped over, as built) summed over cases.
         let mut sums = vec![(0.0, 0.0); columns.len()];

@@ -829,6 +829,22 @@ fn discrepancy_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::P
     (sim, real, case.target)
 }
 
+/// Opens the Model lab's sim-vs-real section and types the two files' paths.
+fn open_sim_vs_real(
+    h: &mut Harness<'static, HmiApp>,
+    sim: &std::path::Path,
+    real: &std::path::Path,
+) {
+    click(h, "Model lab");
+    click(h, "Sim vs real");
+    type_into(h, "Simulation (CSV v1)", sim.to_str().expect("utf-8 path"));
+    type_into(
+        h,
+        "Real recording (CSV v1)",
+        real.to_str().expect("utf-8 path"),
+    );
+}
+
 /// `real` cut at a third and two thirds of its time into the pieces a recorder would have
 /// written in `dir`: `shift.csv`, `shift-0001.csv`, `shift-0002.csv`.
 fn recorded_in_pieces(real: &std::path::Path, dir: &std::path::Path) -> Vec<std::path::PathBuf> {
@@ -861,14 +877,7 @@ fn the_model_lab_reads_a_real_recording_in_the_pieces_the_recorder_cut_it_into()
     let (sim, real, target) = discrepancy_files(f._dir.path());
     let pieces = recorded_in_pieces(&real, &f._dir.path().join("recorded"));
     let h = &mut f.harness;
-    click(h, "Model lab");
-    click(h, "Sim vs real");
-    type_into(h, "Simulation (CSV v1)", sim.to_str().expect("utf-8 path"));
-    type_into(
-        h,
-        "Real recording (CSV v1)",
-        pieces[0].to_str().expect("utf-8 path"),
-    );
+    open_sim_vs_real(h, &sim, &pieces[0]);
     let columns_read = |app: &HmiApp| {
         let d = &app.state.model_lab.discrepancy;
         d.columns.is_some() || d.columns_error.is_some()
@@ -948,14 +957,7 @@ fn the_model_lab_runs_sim_vs_real_off_the_ui_thread_and_shows_the_missing_physic
     let mut f = start();
     let (sim, real, target) = discrepancy_files(f._dir.path());
     let h = &mut f.harness;
-    click(h, "Model lab");
-    click(h, "Sim vs real");
-    type_into(h, "Simulation (CSV v1)", sim.to_str().expect("utf-8 path"));
-    type_into(
-        h,
-        "Real recording (CSV v1)",
-        real.to_str().expect("utf-8 path"),
-    );
+    open_sim_vs_real(h, &sim, &real);
     // The headers are read on a job; the columns both files share are offered.
     step_until(h, "the shared columns", |app| {
         app.state.model_lab.discrepancy.columns.is_some()
