@@ -77,11 +77,11 @@ fn estimates_after_a_break_carried_on_and_afresh() {
                 let back_at = saved_at + break_s;
                 let hour = back_at..back_at + 3600;
                 let mut through = EstimatorPipeline::new(&profile, schema).unwrap();
-                run(&mut through, &recording, 0..saved_at);
+                run(&mut through, recording, 0..saved_at);
                 let mut frame = Vec::new();
                 recording.row_into(saved_at - 1, &mut frame);
                 let saved: SavedState = through.save_state(&frame).unwrap();
-                let expected = run(&mut through, &recording, saved_at..back_at + 3600);
+                let expected = run(&mut through, recording, saved_at..back_at + 3600);
                 let expected = &expected[break_s..];
                 recording.row_into(back_at, &mut frame);
                 let resume = saved
@@ -91,9 +91,9 @@ fn estimates_after_a_break_carried_on_and_afresh() {
                 let mut carried = EstimatorPipeline::new(&profile, schema).unwrap();
                 carried.restore_state(&saved).unwrap();
                 carried.carry_on(&resume);
-                let carried = run(&mut carried, &recording, hour.clone());
+                let carried = run(&mut carried, recording, hour.clone());
                 let mut afresh = EstimatorPipeline::new(&profile, schema).unwrap();
-                let afresh = run(&mut afresh, &recording, hour);
+                let afresh = run(&mut afresh, recording, hour);
                 let outputs: Vec<String> =
                     through.outputs().into_iter().map(|o| o.column).collect();
                 for (k, column) in columns.iter().enumerate() {
