@@ -788,11 +788,7 @@ impl EstimatorPipeline {
         let stepping = std::mem::replace(&mut self.room, start.room.clone());
         self.spindle_room.get_or_insert(stepping);
         self.coolant_lags = start.coolant_lags.clone();
-        let feed = self.feed.iter_mut().map(|a| &mut a.abnormality);
-        let spindles = self.spindles.iter_mut().map(|s| &mut s.abnormality);
-        for abnormality in feed.chain(spindles).flatten() {
-            abnormality.start_blocks_again();
-        }
+        self.start_abnormality_blocks_again();
         let mut across = Vec::new();
         for spindle in &mut self.spindles {
             if let Some(origin) = spindle.elongation_origin {
@@ -988,11 +984,17 @@ impl EstimatorPipeline {
     pub fn carry_on(&mut self, resume: &Resume) {
         self.shift_machine_time(resume.time_shift_s);
         if matches!(resume.clock, Clock::Restarted { .. }) {
-            let feed = self.feed.iter_mut().map(|a| &mut a.abnormality);
-            let spindles = self.spindles.iter_mut().map(|s| &mut s.abnormality);
-            for abnormality in feed.chain(spindles).flatten() {
-                abnormality.start_blocks_again();
-            }
+            self.start_abnormality_blocks_again();
+        }
+    }
+
+    /// Starts every abnormality score's blocks again (a block is a span of machine time, which
+    /// a clock started again or a gap in the frames breaks); the averages stay.
+    fn start_abnormality_blocks_again(&mut self) {
+        let feed = self.feed.iter_mut().map(|a| &mut a.abnormality);
+        let spindles = self.spindles.iter_mut().map(|s| &mut s.abnormality);
+        for abnormality in feed.chain(spindles).flatten() {
+            abnormality.start_blocks_again();
         }
     }
 

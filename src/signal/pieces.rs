@@ -327,16 +327,10 @@ pub fn later_pieces(first: &Path) -> io::Result<Vec<PathBuf>> {
         Some(parent) if !parent.as_os_str().is_empty() => parent,
         _ => Path::new("."),
     };
-    let header = |path: &Path| RecordingReader::open(path).map(|r| r.metadata().to_vec());
-    let value = |metadata: &[(String, String)], key: &str| {
-        metadata
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.clone())
-    };
-    let recording = header(first)
+    let recording = piece_identity(first)
         .ok()
-        .and_then(|metadata| value(&metadata, RECORDING_KEY));
+        .flatten()
+        .map(|(recording, _)| recording);
     let mut numbered = Vec::new();
     for entry in std::fs::read_dir(directory)? {
         let file_name = entry?.file_name();
@@ -355,11 +349,8 @@ pub fn later_pieces(first: &Path) -> io::Result<Vec<PathBuf>> {
         let path = first.with_file_name(&file_name);
         let ours = recording
             .as_ref()
-            .is_none_or(|recording| match header(&path) {
-                Ok(metadata) => {
-                    value(&metadata, RECORDING_KEY).as_ref() == Some(recording)
-                        && value(&metadata, PART_KEY) == Some(number.to_string())
-                }
+            .is_none_or(|recording| match piece_identity(&path) {
+                Ok(identity) => identity == Some((recording.clone(), u64::from(number))),
                 Err(_) => true,
             });
         if ours {
@@ -368,6 +359,22 @@ pub fn later_pieces(first: &Path) -> io::Result<Vec<PathBuf>> {
     }
     numbered.sort();
     Ok(numbered.into_iter().map(|(_, path)| path).collect())
+}
+
+/// Which recording the file at `path` says it is a piece of, and which piece
+/// ([`RECORDING_KEY`], [`PART_KEY`], as the recorder writes them); `None` for a file that does
+/// not say both. Reads only the header.
+fn piece_identity(path: &Path) -> Result<Option<(String, u64)>, RecordingError> {
+    let reader = RecordingReader::open(path)?;
+    let value = |key: &str| {
+        reader
+            .metadata()
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.clone())
+    };
+    let part = value(PART_KEY).and_then(|p| p.parse::<u64>().ok());
+    Ok(value(RECORDING_KEY).zip(part))
 }
 
 /// The recordings in a list of files: a file whose header says it is a later piece of the
@@ -380,14 +387,7 @@ pub fn group_pieces(paths: &[PathBuf]) -> Result<Vec<Vec<PathBuf>>, RecordingErr
     let mut groups: Vec<Vec<PathBuf>> = Vec::new();
     let mut previous: Option<(String, u64)> = None;
     for path in paths {
-        let metadata = RecordingReader::open(path)?.metadata().to_vec();
-        let value = |key: &str| {
-            metadata
-                .iter()
-                .find(|(k, _)| k == key)
-                .map(|(_, v)| v.clone())
-        };
-        let this = value(RECORDING_KEY).zip(value(PART_KEY).and_then(|p| p.parse::<u64>().ok()));
+        let this = piece_identity(path)?;
         let continues = matches!(
             (&previous, &this),
             (Some((recording, part)), Some((now, later))) if recording == now && later > part
