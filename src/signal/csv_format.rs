@@ -28,10 +28,25 @@ pub struct RecordingReader<R: Read> {
     schema: Schema,
     csv: csv::Reader<io::Chain<io::Cursor<Vec<u8>>, BufReader<R>>>,
     /// Lines before the header (metadata); csv positions count from the header line.
-    pub(super) lines_before_header: u64,
+    lines_before_header: u64,
+    /// Whether the header's line ends in CR LF: the file's rows are taken to end the same way.
+    lines_end_in_cr_lf: bool,
     record: csv::ByteRecord,
     previous_time: Option<f64>,
     rows_read: u64,
+}
+
+/// What a read took from a file, row by row as they stand in it (a read that averages keeps
+/// fewer rows, at the blocks' mean times).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct RowsRead {
+    /// The rows read.
+    pub(super) rows: u64,
+    /// The first row's time and the file line it is on (blank lines and metadata before it
+    /// counted).
+    pub(super) first: Option<(f64, u64)>,
+    /// The last row's time.
+    pub(super) last_time_s: Option<f64>,
 }
 
 impl RecordingReader<File> {
@@ -111,6 +126,7 @@ impl<R: Read> RecordingReader<R> {
             break std::mem::take(&mut line);
         };
         let lines_before_header = line_no - 1;
+        let lines_end_in_cr_lf = header_bytes.ends_with(b"\r\n");
         let mut csv = csv::ReaderBuilder::new()
             .has_headers(true)
             .flexible(true)
@@ -137,6 +153,7 @@ impl<R: Read> RecordingReader<R> {
             schema,
             csv,
             lines_before_header,
+            lines_end_in_cr_lf,
             record: csv::ByteRecord::new(),
             previous_time: None,
             rows_read: 0,
@@ -272,13 +289,14 @@ impl<R: Read> RecordingReader<R> {
             .map(|(recording, _)| recording)
     }
 
-    /// [`Self::read_observed`], with the number of rows read (before any averaging).
+    /// [`Self::read_observed`], with what was read as it stood in the file ([`RowsRead`]): the
+    /// rows before any averaging, and where the first of them was.
     pub(super) fn read_observed_counting(
         mut self,
         limit: usize,
         block_s: Option<f64>,
         observe: &mut dyn FnMut(u64) -> bool,
-    ) -> Result<(Recording, u64), RecordingError> {
+    ) -> Result<(Recording, RowsRead), RecordingError> {
         if let Some(block_s) = block_s
             && !(block_s.is_finite() && block_s > 0.0)
         {
@@ -315,9 +333,13 @@ impl<R: Read> RecordingReader<R> {
             means.extend(sums.iter().map(|s| s / count as f64));
         };
         let mut rows = 0u64;
+        let mut first: Option<(f64, u64)> = None;
+        let mut last_time_s = None;
         while self.read_row(&mut row)? {
             let line = self.current_line();
             rows += 1;
+            first.get_or_insert((row[0], line));
+            last_time_s = Some(row[0]);
             if rows.is_multiple_of(Self::OBSERVED_EVERY) && !observe(rows) {
                 return Err(RecordingError::Stopped {
                     at: self.location(line, None),
@@ -356,14 +378,28 @@ impl<R: Read> RecordingReader<R> {
         if let Some(block_s) = block_s {
             recording.set_metadata(AVERAGED_OVER_S, &block_s.to_string());
         }
-        Ok((recording, rows))
+        let read = RowsRead {
+            rows,
+            first,
+            last_time_s,
+        };
+        Ok((recording, read))
     }
 
     /// The file line of the row read last.
     pub(super) fn current_line(&self) -> u64 {
-        self.record
-            .position()
-            .map_or(0, |p| p.line() + self.lines_before_header)
+        // A record's own position is where its read began, before the blank lines it skipped
+        // (and, in a CR LF file, on the LF that ended the row before). The reader stops after
+        // an LF that ends the record, on the record's next line, but on the CR of a CR LF,
+        // still on the record's line.
+        let began = self.record.position().map_or(0, |p| p.line());
+        let after = self.csv.position().line();
+        let ended = if self.lines_end_in_cr_lf {
+            after
+        } else {
+            after.saturating_sub(1)
+        };
+        began.max(ended) + self.lines_before_header
     }
 
     /// Like [`Self::read_to_end`], but on a bad row returns what was read before it together with
@@ -655,6 +691,27 @@ mod tests {
             err.to_string(),
             format!("t.csv: line {}: reading stopped here", 2 * every + 1)
         );
+    }
+
+    /// A bad cell is named on its own line, whatever blank lines come before it (the reader
+    /// skips them), on the last line without its line end too, and under metadata.
+    #[test]
+    fn a_bad_cell_after_blank_lines_is_named_on_its_own_line() {
+        for (text, line) in [
+            ("time_s,x\n\n\n2.5,zz\n", 4),
+            ("time_s,x\n2.5,1\n\n\n3.5,zz\n", 5),
+            ("time_s,x\n2.5,1\n\n3.5,1\n4.5,zz", 5),
+            ("# k: v\n\ntime_s,x\n2.5,1\n\n3.5,zz\n4.5,1\n", 6),
+            ("time_s,x\r\n\r\n2.5,1\r\n3.5,zz\r\n", 4),
+            ("time_s,x\r\n2.5,1\r\n\r\n\r\n3.5,zz\r\n", 5),
+            ("time_s,x\r\n2.5,1\r\n3.5,zz", 3),
+        ] {
+            let error = read(text).unwrap_err().to_string();
+            assert!(
+                error.starts_with(&format!("t.csv: line {line}, column 2")),
+                "{text:?}: {error}"
+            );
+        }
     }
 
     /// Past the limit the read stops with an error naming the file and the line where the row

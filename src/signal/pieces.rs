@@ -187,15 +187,16 @@ impl RecordingPieces {
         // The rows read in the pieces before this one.
         let mut rows_before = 0;
         loop {
-            let first_line = reader.lines_before_header + 2;
             let mut counted = |rows: u64| observe(rows_before + rows);
-            let (part, rows) =
+            let (part, read) =
                 reader.read_observed_counting(limit - columns[0].len(), block_s, &mut counted)?;
-            rows_before += rows;
-            if let Some(&time_s) = part.time().first() {
-                in_order(&paths, at, first_line, time_s, last)?;
+            rows_before += read.rows;
+            // The rows as they stand in the file, not the blocks' means: the order and the
+            // line named are the file's.
+            if let Some((time_s, line)) = read.first {
+                in_order(&paths, at, line, time_s, last)?;
             }
-            if let Some(&time_s) = part.time().last() {
+            if let Some(time_s) = read.last_time_s {
                 last = Some((time_s, at));
             }
             let (part_metadata, part_columns) = part.into_metadata_and_columns();
@@ -554,6 +555,33 @@ mod tests {
                 paths[1].display()
             )
         );
+        // Blank lines after the header: the line named is the row's, read whole, averaged or
+        // row by row.
+        let spaced = dir.path().join("spaced.csv");
+        std::fs::write(&spaced, "time_s,x\n\n\n2.5,1\n3.5,1\n").unwrap();
+        let late = [paths[0].clone(), spaced.clone()];
+        let expected = format!(
+            "{}: line 4: this piece starts at 2.5 s, before 4 s where {} ends: give the pieces in the order they were recorded",
+            spaced.display(),
+            paths[0].display()
+        );
+        for block_s in [None, Some(2.0)] {
+            let error = RecordingPieces::open(&late)
+                .unwrap()
+                .read_observed(usize::MAX, block_s, &mut |_| true)
+                .unwrap_err();
+            assert_eq!(error.to_string(), expected, "blocks of {block_s:?} s");
+        }
+        let mut row_by_row = RecordingPieces::open(&late).unwrap();
+        let mut row = Vec::new();
+        let error = loop {
+            match row_by_row.read_row(&mut row) {
+                Ok(true) => continue,
+                Ok(false) => panic!("the piece out of order was read"),
+                Err(error) => break error,
+            }
+        };
+        assert_eq!(error.to_string(), expected);
         let other = dir.path().join("other.csv");
         std::fs::write(&other, "time_s,y\n20,1\n").unwrap();
         let mixed = [paths[0].clone(), other.clone()];
