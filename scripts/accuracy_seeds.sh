@@ -6,6 +6,9 @@
 # best R² over every (database, day) pair. Takes about 5 minutes after the release build.
 #
 #     bash scripts/accuracy_seeds.sh [OUT_DIR] [DATABASE_SEEDS...]   (default seeds: 1 3 4 5)
+#
+# With EXPERIMENT_FROM_S=7200 the experiment is the shift's rows from 2 h on: an experiment
+# that begins on a warm machine (docs/accuracy.md, *An experiment that begins warm*).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-target/accuracy-seeds}
@@ -17,6 +20,12 @@ cargo build --release --quiet
 S=target/release/servosight
 
 $S simulate --scenario production --hours 8 --seed 2 -o "$out/experiment.csv" 2> /dev/null
+if [ -n "${EXPERIMENT_FROM_S:-}" ]; then
+    # The experiment as a recording that begins mid-shift: its rows from that time on.
+    awk -F, -v from="$EXPERIMENT_FROM_S" '/^#/ || !header++ || $1 >= from' \
+        "$out/experiment.csv" > "$out/experiment-cut.csv"
+    mv "$out/experiment-cut.csv" "$out/experiment.csv"
+fi
 for day in 7 8 9; do
     $S simulate --scenario production --hours 10 --seed "$day" -o "$out/day$day.csv" 2> /dev/null
 done

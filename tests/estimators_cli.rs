@@ -825,8 +825,9 @@ fn estimate_says_where_the_spindle_elongation_counts_from() {
 }
 
 /// Calibration fits every part's warm start, and says which calibration recording starts on a
-/// warm machine (its heat terms are accumulated from rest at its first row, so it biases the
-/// heat models) and which does not.
+/// warm machine and which does not: an experiment's start is fitted free for the heat models
+/// (the report says so of the models it joined), and the spindle elongation is calibrated
+/// without it.
 #[test]
 fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
     let dir = tempfile::tempdir().unwrap();
@@ -843,6 +844,7 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
     let experiment = dir.path().join("exp-from-mid-shift.csv");
     rows_between(&shift, &experiment, 5400.0, f64::INFINITY);
     let profile = dir.path().join("profile.toml");
+    let report = dir.path().join("calibration.json");
     let run = servosight(&[
         "calibrate",
         "--database",
@@ -851,8 +853,38 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
         arg(&experiment),
         "-o",
         arg(&profile),
+        "--json",
+        arg(&report),
     ]);
     assert!(run.status.success(), "{}", stderr(&run));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let models = report["models"].as_array().unwrap();
+    let elongation = models
+        .iter()
+        .find(|m| m["estimate"] == "S.spindle_elongation")
+        .expect("an elongation model");
+    assert_eq!(elongation["selected_by"], "blocked_cv", "{elongation}");
+    // The heat models fit a warm experiment's start free; the straightness reads the
+    // estimators' temperatures over it as they are.
+    let heat_models = models.iter().filter(|m| {
+        m["selected_by"] == "experiments_joined"
+            && m["estimate"].as_str().unwrap().ends_with("_temp")
+    });
+    let heat_models: Vec<_> = heat_models.collect();
+    assert!(
+        !heat_models.is_empty(),
+        "no heat model joined the experiment"
+    );
+    for model in heat_models {
+        assert!(
+            model["equation"]
+                .as_str()
+                .unwrap()
+                .contains("the start of the experiment that begins warm fitted free"),
+            "{model}"
+        );
+    }
     let err = stderr(&run);
     let warned: Vec<&str> = err
         .lines()
@@ -861,6 +893,12 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
     assert_eq!(warned.len(), 1, "{err}");
     assert!(
         warned[0].contains("exp-from-mid-shift.csv") && warned[0].contains("(X stator "),
+        "{err}"
+    );
+    assert!(
+        warned[0].contains("fitted as a free start")
+            && warned[0].contains("elongation")
+            && warned[0].contains("calibrated without this recording"),
         "{err}"
     );
     let text = std::fs::read_to_string(&profile).unwrap();

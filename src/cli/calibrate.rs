@@ -73,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     profile.validate("the calibrated profile")?;
     profile.save(&args.output)?;
     warn_of_weak_models(&report, &database);
-    warn_of_warm_starts(&profile, database.iter().chain(&experiments));
+    warn_of_warm_starts(&profile, &database, &experiments);
     emit_report(args.json.as_deref(), &report, || {
         outln!(
             "{:<34} {:>8} {:>8} {:>8} {:>12}  equation",
@@ -157,13 +157,17 @@ fn warn_of_weak_models(report: &CalibrationReport, database: &[Recording]) {
     }
 }
 
-/// A recording that starts on a warm machine biases the heat models (every heat term is
-/// accumulated from rest at its first row): said on stderr, naming the recording and the axes.
-fn warn_of_warm_starts<'a>(
+/// A recording that starts on a warm machine: said on stderr, naming the recording and the
+/// axes. A database recording biases every heat model (they are accumulated from rest at its
+/// first row); an experiment's start is fitted free for the heat models, and the spindle
+/// elongation is calibrated without it.
+fn warn_of_warm_starts(
     profile: &MachineProfile,
-    recordings: impl Iterator<Item = &'a Recording>,
+    database: &[Recording],
+    experiments: &[Recording],
 ) {
-    for recording in recordings {
+    let tagged = database.iter().map(|r| (r, true));
+    for (recording, in_database) in tagged.chain(experiments.iter().map(|r| (r, false))) {
         let warm = warm_at_first_row(profile, recording);
         if warm.is_empty() {
             continue;
@@ -172,11 +176,20 @@ fn warn_of_warm_starts<'a>(
             .iter()
             .map(|(axis, excess)| format!("{axis} stator {excess:.1} K above the room"))
             .collect();
+        let consequence = if in_database {
+            "calibration accumulates the heat of every model from rest at a database \
+             recording's first row, so the heat models are fitted to heat this recording does \
+             not show; calibrate on recordings that start after a long stop"
+        } else {
+            "the heat it held then is fitted as a free start (decays that are no term of the \
+             models) for the flange, bearing and nut models, and the straightness reads the \
+             estimators' temperatures, which start warm as in service; the spindle elongation, \
+             counted from the tool measurement, cannot tell that heat from its own slow heat and \
+             is calibrated without this recording: for it, give an experiment that starts after \
+             a long stop"
+        };
         eprintln!(
-            "warning: {} starts on a warm machine ({}): calibration accumulates the heat of \
-             every model from rest at a recording's first row, so the heat models are fitted to \
-             heat this recording does not show; calibrate on recordings that start after a long \
-             stop",
+            "warning: {} starts on a warm machine ({}): {consequence}",
             recording.source(),
             axes.join(", ")
         );
