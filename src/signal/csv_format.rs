@@ -21,16 +21,18 @@ use std::path::Path;
 use super::error::{Location, RecordingError, quote_cell};
 use super::recording::{Recording, Schema};
 
+/// The bytes the csv parser reads: the header line, the rest of the file, and a line end
+/// after its last line, so that every row ends in one (see [`RecordingReader::current_line`]).
+type RowBytes<R> = io::Chain<io::Chain<io::Cursor<Vec<u8>>, BufReader<R>>, &'static [u8]>;
+
 /// Reads a recording row by row.
 pub struct RecordingReader<R: Read> {
     source: String,
     metadata: Vec<(String, String)>,
     schema: Schema,
-    csv: csv::Reader<io::Chain<io::Cursor<Vec<u8>>, BufReader<R>>>,
+    csv: csv::Reader<RowBytes<R>>,
     /// Lines before the header (metadata); csv positions count from the header line.
     lines_before_header: u64,
-    /// Whether the header's line ends in CR LF: the file's rows are taken to end the same way.
-    lines_end_in_cr_lf: bool,
     record: csv::ByteRecord,
     previous_time: Option<f64>,
     rows_read: u64,
@@ -126,11 +128,17 @@ impl<R: Read> RecordingReader<R> {
             break std::mem::take(&mut line);
         };
         let lines_before_header = line_no - 1;
-        let lines_end_in_cr_lf = header_bytes.ends_with(b"\r\n");
+        // Rows end at an LF alone (a CR before it stays in the row's last cell, which is
+        // trimmed), so that the parser stands on the next line after every row it reads.
         let mut csv = csv::ReaderBuilder::new()
             .has_headers(true)
             .flexible(true)
-            .from_reader(io::Cursor::new(header_bytes).chain(buffered));
+            .terminator(csv::Terminator::Any(b'\n'))
+            .from_reader(
+                io::Cursor::new(header_bytes)
+                    .chain(buffered)
+                    .chain(&b"\n"[..]),
+            );
         let header = csv
             .byte_headers()
             .map_err(|e| csv_error(e, source, line_no))?;
@@ -153,7 +161,6 @@ impl<R: Read> RecordingReader<R> {
             schema,
             csv,
             lines_before_header,
-            lines_end_in_cr_lf,
             record: csv::ByteRecord::new(),
             previous_time: None,
             rows_read: 0,
@@ -181,12 +188,20 @@ impl<R: Read> RecordingReader<R> {
     /// the caller's hands, so a recorder or an importer can keep what was good and report where
     /// the file went wrong.
     pub fn read_row(&mut self, out: &mut Vec<f64>) -> Result<bool, RecordingError> {
-        let more = self
-            .csv
-            .read_byte_record(&mut self.record)
-            .map_err(|e| csv_error(e, &self.source, self.lines_before_header))?;
-        if !more {
-            return Ok(false);
+        loop {
+            let more = self
+                .csv
+                .read_byte_record(&mut self.record)
+                .map_err(|e| csv_error(e, &self.source, self.lines_before_header))?;
+            if !more {
+                return Ok(false);
+            }
+            // A blank line (spaces, or the CR of a CR LF) is no row, as before the header.
+            let blank =
+                self.record.len() == 1 && self.record[0].iter().all(u8::is_ascii_whitespace);
+            if !blank {
+                break;
+            }
         }
         let line = self.current_line();
         out.clear();
@@ -202,6 +217,8 @@ impl<R: Read> RecordingReader<R> {
         // is parsed cell by cell so that the error names the cell.
         let text = std::str::from_utf8(self.record.as_slice()).ok();
         for (i, cell) in self.record.iter().enumerate() {
+            // The last cell of a CR LF row ends in the CR.
+            let cell = trim_line_end(cell);
             let parsed = match text.zip(self.record.range(i)).and_then(|(t, r)| t.get(r)) {
                 Some(text_cell) => parse_text_cell(text_cell),
                 None => parse_cell(cell),
@@ -388,18 +405,10 @@ impl<R: Read> RecordingReader<R> {
 
     /// The file line of the row read last.
     pub(super) fn current_line(&self) -> u64 {
-        // A record's own position is where its read began, before the blank lines it skipped
-        // (and, in a CR LF file, on the LF that ended the row before). The reader stops after
-        // an LF that ends the record, on the record's next line, but on the CR of a CR LF,
-        // still on the record's line.
-        let began = self.record.position().map_or(0, |p| p.line());
-        let after = self.csv.position().line();
-        let ended = if self.lines_end_in_cr_lf {
-            after
-        } else {
-            after.saturating_sub(1)
-        };
-        began.max(ended) + self.lines_before_header
+        // Not the record's own position, which is where its read began, before the blank
+        // lines it skipped: every row ends in an LF the parser has read, so it stands on the
+        // line after the row's (after the last line of a row whose quoted cell spans lines).
+        self.csv.position().line().saturating_sub(1) + self.lines_before_header
     }
 
     /// Like [`Self::read_to_end`], but on a bad row returns what was read before it together with
@@ -694,10 +703,15 @@ mod tests {
     }
 
     /// A bad cell is named on its own line, whatever blank lines come before it (the reader
-    /// skips them), on the last line without its line end too, and under metadata.
+    /// skips them) and whatever ends the lines (LF, CR LF, or both in one file), on the last
+    /// line without its line end too, and under metadata; the CR is no part of the cell.
     #[test]
     fn a_bad_cell_after_blank_lines_is_named_on_its_own_line() {
         for (text, line) in [
+            ("time_s,x\r\n2.5,1\n\n3.5,zz\n", 4),
+            ("time_s,x\n2.5,1\r\n \r\n\r\n3.5,zz\r\n", 5),
+            ("time_s,x\n2.5,1\n\n\n3.5,zz", 5),
+            ("time_s,x\n\n2.5,zz", 3),
             ("time_s,x\n\n\n2.5,zz\n", 4),
             ("time_s,x\n2.5,1\n\n\n3.5,zz\n", 5),
             ("time_s,x\n2.5,1\n\n3.5,1\n4.5,zz", 5),
@@ -707,10 +721,19 @@ mod tests {
             ("time_s,x\r\n2.5,1\r\n3.5,zz", 3),
         ] {
             let error = read(text).unwrap_err().to_string();
-            assert!(
-                error.starts_with(&format!("t.csv: line {line}, column 2")),
-                "{text:?}: {error}"
+            assert_eq!(
+                error,
+                format!("t.csv: line {line}, column 2 (`x`): `zz` is not a number"),
+                "{text:?}"
             );
+        }
+        for text in [
+            "time_s,x\r\n\r\n1,2\r\n  \r\n2,3\r\n",
+            "time_s,x\n1,2\r\n\n2,3",
+        ] {
+            let recording = read(text).unwrap();
+            assert_eq!(recording.time(), &[1.0, 2.0], "{text:?}");
+            assert_eq!(recording.column("x").unwrap(), &[2.0, 3.0], "{text:?}");
         }
     }
 
