@@ -73,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     profile.validate("the calibrated profile")?;
     profile.save(&args.output)?;
     warn_of_weak_models(&report, &database);
-    warn_of_warm_starts(&profile, &database, &experiments);
+    warn_of_warm_starts(&database, &experiments);
     emit_report(args.json.as_deref(), &report, || {
         outln!(
             "{:<34} {:>8} {:>8} {:>8} {:>12}  equation",
@@ -161,14 +161,10 @@ fn warn_of_weak_models(report: &CalibrationReport, database: &[Recording]) {
 /// axes. A database recording biases every heat model (they are accumulated from rest at its
 /// first row); an experiment's start is fitted free for the heat models, and the spindle
 /// elongation is calibrated without it.
-fn warn_of_warm_starts(
-    profile: &MachineProfile,
-    database: &[Recording],
-    experiments: &[Recording],
-) {
+fn warn_of_warm_starts(database: &[Recording], experiments: &[Recording]) {
     let tagged = database.iter().map(|r| (r, true));
     for (recording, in_database) in tagged.chain(experiments.iter().map(|r| (r, false))) {
-        let warm = warm_at_first_row(profile, recording);
+        let warm = warm_at_first_row(recording);
         if warm.is_empty() {
             continue;
         }

@@ -17,9 +17,8 @@
 //! blocked cross-validation over them says that predicts them better.
 #![allow(non_snake_case)] // unit suffixes (`_C`, `_Nm`) are part of the names
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
-use crate::discrepancy::cv::least_squares;
 use crate::discrepancy::series::{rms, span};
 use crate::fit::autocorrelation::mean_above_zero;
 use crate::fit::{Design, FitError, OlsFit, OlsOptions, blocked_cross_validation, ols, wls};
@@ -67,8 +66,8 @@ const CORRECTION_ALPHA: f64 = 0.05;
 /// Experiments correct a model only with at least this many reference samples.
 const MIN_EXPERIMENT_ROWS: usize = 30;
 /// Time constants of the free start of an experiment that begins on a warm machine, s: from
-/// a part's fast heat (τ / 4 of the shortest `HEAT_TAUS_S`) to the room's and the elongation
-/// bank's hours, three apart. Every model's accumulations and lags begin that recording from
+/// a part's fast heat (τ / 4 of `HEAT_TAUS_S`, 75–900 s) to the room's hours, three apart
+/// (an experiment keeps those no longer than itself). Every model's accumulations and lags begin that recording from
 /// rest (or settled) where the machine held heat they never saw; in a model linear in them,
 /// each state's unknown start adds its own decay, e^(−(t − t₀)/τ), at its own τ, and a sum of
 /// decays three apart stands for any mixture of those.
@@ -277,17 +276,17 @@ pub struct CalibrationReport {
     pub models: Vec<ModelReport>,
 }
 
-/// The axes of `profile` whose stator stood more than the floor above the room ([`warm_excess`]) in
-/// the first row of `recording` where both are known, with that excess. Calibration accumulates
-/// every heat term from rest at a recording's first row: a database recording that starts on a
-/// warm machine fits the heat models to heat it does not show. An experiment's start is fitted
-/// free for the flange, bearing and nut models, the straightness reads the estimators' own
-/// temperatures over it, and the spindle elongation is calibrated without it.
-pub fn warm_at_first_row(profile: &MachineProfile, recording: &Recording) -> Vec<(AxisId, f64)> {
-    profile
-        .axes
-        .keys()
-        .filter_map(|&axis| first_row_excess(recording, axis).map(|excess| (axis, excess)))
+/// The axes whose stator stood more than the floor above the room ([`warm_excess`]) in the
+/// first row of `recording` where both are known, with that excess: the recording begins on a
+/// warm machine. Calibration accumulates every heat term from rest at a recording's first row:
+/// a database recording that begins warm fits the heat models to heat it does not show. An
+/// experiment's start is fitted free for the flange, bearing and nut models, the straightness
+/// reads the estimators' own temperatures over it, and the spindle elongation is calibrated
+/// without it.
+pub fn warm_at_first_row(recording: &Recording) -> Vec<(AxisId, f64)> {
+    AxisId::ALL
+        .into_iter()
+        .filter_map(|axis| first_row_excess(recording, axis).map(|excess| (axis, excess)))
         .collect()
 }
 
@@ -763,23 +762,17 @@ fn fit_best(
     for c in 0..count {
         let columns = stack(&per_recording, c);
         if y_experiment.len() >= MIN_EXPERIMENT_ROWS {
-            let mut experiment_columns = stack(&per_experiment, c);
-            experiment_columns.extend(free_start.iter().cloned());
-            let mut database_columns = columns.clone();
-            database_columns.extend(
-                free_start
-                    .iter()
-                    .map(|(name, _)| (name.clone(), vec![0.0; y.len()])),
-            );
             let experiment = Rows {
                 y: &y_experiment,
-                columns: &experiment_columns,
+                columns: &stack(&per_experiment, c),
                 starts: &experiment_starts,
+                free_start: &free_start,
             };
             let database = Rows {
                 y: &y,
-                columns: &database_columns,
+                columns: &columns,
                 starts: &[0],
+                free_start: &Vec::new(),
             };
             match fit_joined(estimate, symbol, target, &database, &experiment, scoring) {
                 Ok(joined) => {
@@ -851,11 +844,13 @@ fn fit_best(
     }
 }
 
-/// A target and its candidate columns over stacked recordings that start at `starts`.
+/// A target and its candidate columns over stacked recordings that start at `starts`, with
+/// the free start of those that begin warm ([`start_columns`]; none for the database).
 struct Rows<'a> {
     y: &'a [f64],
     columns: &'a Columns,
     starts: &'a [usize],
+    free_start: &'a Columns,
 }
 
 impl Rows<'_> {
@@ -888,20 +883,21 @@ fn fit_joined(
     let weights: Vec<f64> = (0..n_db + n_exp)
         .map(|i| if i < n_db { 1.0 } else { experiment_weight })
         .collect();
-    let columns: Columns = database
+    let model_columns: Columns = database
         .columns
         .iter()
         .zip(experiment.columns)
         .map(|((name, d), (_, e))| (name.clone(), [d.as_slice(), e].concat()))
         .collect();
-    // A warm experiment's free start ([`start_columns`]) is fitted with the model on every
-    // row and taken as known while the model's own terms are held out: a start is not
-    // predicted from later hours (its decays, fitted where they have died out, were
-    // extrapolated tenfold and more), and the database's models are scored with their start
-    // fitted the same way.
-    let (model_columns, free_start): (Columns, Columns) = columns
-        .into_iter()
-        .partition(|(name, _)| !name.starts_with(START_TERM));
+    // A warm experiment's free start is fitted with the model on every row and taken as
+    // known while the model's own terms are held out: a start is not predicted from later
+    // hours (its decays, fitted where they have died out, were extrapolated tenfold and
+    // more), and the database's models are scored with their start fitted the same way.
+    let free_start: Columns = experiment
+        .free_start
+        .iter()
+        .map(|(name, e)| (name.clone(), [vec![0.0; n_db].as_slice(), e].concat()))
+        .collect();
     let y = [database.y, experiment.y].concat();
     let model_count = model_columns.len();
     // The model's own terms over every row, and what the free start explains of each
@@ -923,12 +919,6 @@ fn fit_joined(
         let cv_design = Design::from_columns(target, cv_y, model_columns).map_err(err)?;
         (cv_design, fit, start[n_db..].to_vec())
     };
-    let experiment_model_columns: Columns = experiment
-        .columns
-        .iter()
-        .filter(|(name, _)| !name.starts_with(START_TERM))
-        .cloned()
-        .collect();
     let mut held_out = vec![f64::NAN; n_exp];
     for (start_row, end, gap) in experiment_folds(n_exp) {
         let keep = |i: usize| i < n_db || i - n_db + gap < start_row || i - n_db >= end + gap;
@@ -938,7 +928,7 @@ fn fit_joined(
             .map(|i| weights[i])
             .collect();
         let block_fit = wls(&training, &training_weights, &OlsOptions::default()).map_err(err)?;
-        let mut predicted = predict(&block_fit.estimates(), &experiment_model_columns, n_exp);
+        let mut predicted = predict(&block_fit.estimates(), experiment.columns, n_exp);
         for (p, s) in predicted.iter_mut().zip(&start) {
             *p += s;
         }
@@ -952,10 +942,18 @@ fn fit_joined(
     }
     let score = r_squared(experiment.y, &held_out);
     let model = linear_model(symbol, &fit);
-    let warm_note = match free_start.len() / START_DECAY_TAUS_S.len() {
+    let warm_experiments: BTreeSet<&str> = experiment
+        .free_start
+        .iter()
+        .filter_map(|(name, _)| start_term_experiment(name))
+        .collect();
+    let warm_note = match warm_experiments.len() {
         0 => String::new(),
-        1 => "; the start of the experiment that begins warm fitted free".to_string(),
-        n => format!("; the start of the {n} experiments that begin warm fitted free"),
+        1 => "; the start of the experiment that begins warm fitted free, which its R² and F count"
+            .to_string(),
+        n => format!(
+            "; the start of the {n} experiments that begin warm fitted free, which its R² and F count"
+        ),
     };
     let report = ModelReport {
         estimate: estimate.to_string(),
@@ -1063,24 +1061,23 @@ fn stack(per_recording: &[Vec<Columns>], c: usize) -> Columns {
     columns
 }
 
-/// Whether `recording` begins on a warm machine: some motor's stator more than
-/// [`super::models::WARM_START_FLOOR_K`] above the room in the first row where both are read.
+/// Whether `recording` begins on a warm machine ([`warm_at_first_row`]).
 fn starts_warm(recording: &Recording) -> bool {
-    AxisId::ALL
-        .into_iter()
-        .any(|axis| first_row_excess(recording, axis).is_some())
+    !warm_at_first_row(recording).is_empty()
 }
 
 /// The free-start columns ([`START_DECAY_TAUS_S`]) of the experiments that begin warm, over
 /// their rows stacked in order (`rows` in all), zero on every other experiment's rows. Each
-/// warm experiment has its own, named `warm_start_decay#<its index>_<τ>s`.
+/// warm experiment of at least `MIN_EXPERIMENT_ROWS` rows has its own, named
+/// `warm_start_decay#<its index>_<τ>s`, for the time constants no longer than it lasts:
+/// over a shorter span a decay is a ramp the others and the offset already make.
 fn start_columns(experiments: &[&Recording], warm: &[bool], rows: usize) -> Columns {
     let mut columns = Vec::new();
     let mut at = 0;
     for (index, (recording, &warm)) in experiments.iter().zip(warm).enumerate() {
         let time = recording.time();
-        if warm {
-            let t0 = time.first().copied().unwrap_or(0.0);
+        let (t0, t_end) = span(time);
+        if warm && time.len() >= MIN_EXPERIMENT_ROWS {
             let mut column = |name: String, value: &dyn Fn(f64) -> f64| {
                 let mut column = vec![0.0; rows];
                 for (slot, &t) in column[at..].iter_mut().zip(time) {
@@ -1088,10 +1085,11 @@ fn start_columns(experiments: &[&Recording], warm: &[bool], rows: usize) -> Colu
                 }
                 columns.push((name, column));
             };
-            for tau in START_DECAY_TAUS_S {
-                column(format!("{START_TERM}#{index}_{tau}s"), &|t| {
-                    (-t / tau).exp()
-                });
+            for tau in START_DECAY_TAUS_S
+                .into_iter()
+                .filter(|&tau| tau <= t_end - t0)
+            {
+                column(start_term(index, tau), &|t| (-t / tau).exp());
             }
         }
         at += time.len();
@@ -1099,15 +1097,28 @@ fn start_columns(experiments: &[&Recording], warm: &[bool], rows: usize) -> Colu
     columns
 }
 
+/// The name of experiment `index`'s free-start term at `tau_s`.
+fn start_term(index: usize, tau_s: f64) -> String {
+    format!("{START_TERM}#{index}_{tau_s}s")
+}
+
+/// The experiment (its index) a free-start term's name ([`start_term`]) belongs to.
+fn start_term_experiment(name: &str) -> Option<&str> {
+    let (_, rest) = name.strip_prefix(START_TERM)?.split_once('#')?;
+    rest.split_once('_').map(|(index, _)| index)
+}
+
 /// The free start ([`start_columns`]) fitted by least squares to `residual` on every row:
 /// what it explains of each, beside an offset over all the rows (not returned: the start is
 /// the decays alone). None when the fit is degenerate.
 fn fitted_start(residual: &[f64], free_start: &Columns) -> Option<Vec<f64>> {
-    let ones = vec![1.0; residual.len()];
-    let mut columns: Vec<&[f64]> = free_start.iter().map(|(_, c)| c.as_slice()).collect();
-    columns.push(&ones);
-    let (coefficients, _) = least_squares(&columns, residual)?;
-    Some(start_of_rows(free_start, &coefficients, residual.len()))
+    let design = Design::from_columns("residual", residual.to_vec(), free_start.clone()).ok()?;
+    let fit = ols(&design).ok()?;
+    Some(start_of_rows(
+        free_start,
+        &fit.estimates()[1..],
+        residual.len(),
+    ))
 }
 
 /// Σ sₖ·startₖ for every row: what the free start with coefficients `s` (in its order; any
@@ -1528,10 +1539,10 @@ fn fit_heat_model(
         .all(|r| r.try_column(AMBIENT).is_some());
     let warm_start = if room_recorded {
         let recordings = database.iter().zip(&db_inputs);
-        let recordings = recordings.chain(experiments.iter().zip(&experiment_inputs));
-        // A recording that begins warm accumulates from rest a heat its machine already held:
-        // its accumulations say too little per kelvin of excess.
-        let recordings = recordings.filter(|(recording, _)| !starts_warm(recording));
+        // An experiment that begins warm accumulates from rest a heat its machine already
+        // held: its accumulations say too little per kelvin of excess.
+        let experiments = experiments.iter().zip(&experiment_inputs);
+        let recordings = recordings.chain(experiments.filter(|(r, _)| !starts_warm(r)));
         fit_part_warm_start(recordings, &stator_name, tau, &estimate)?
     } else {
         None
