@@ -2511,26 +2511,8 @@ mod tests {
     #[test]
     fn an_experiment_that_begins_warm_calibrates_as_one_from_rest() {
         let database = part_heat_recording(1.6, 8.0, 0.0, 1);
-        let columns = |r: &Recording| -> Result<Vec<Columns>, CalibrationError> {
-            let column = |name: &str| -> Result<(String, Vec<f64>), CalibrationError> {
-                Ok((name.to_string(), r.column_for(name, "test")?.to_vec()))
-            };
-            Ok(vec![vec![column("heat")?, column(AMBIENT)?]])
-        };
         let gain = |experiment: &Recording| {
-            let fitted = fit_best(
-                "test",
-                "y",
-                std::slice::from_ref(&database),
-                std::slice::from_ref(experiment),
-                "part",
-                &|_, _, r| columns(r),
-                ExperimentUse {
-                    scoring: Scoring::Absolute,
-                    warm: WarmExperiment::FreeStart,
-                },
-            )
-            .unwrap();
+            let fitted = fit_named(&database, experiment, "part", &["heat", AMBIENT]);
             let model = fitted.model;
             assert_eq!(
                 model.terms,
@@ -2617,19 +2599,27 @@ mod tests {
         recording
     }
 
-    fn fit_x1_x2(database: &Recording, experiment: &Recording) -> Fitted {
+    /// [`fit_best`] of `target` on one candidate, the recordings' columns `names`, with one
+    /// database recording and one experiment.
+    fn fit_named(
+        database: &Recording,
+        experiment: &Recording,
+        target: &str,
+        names: &[&str],
+    ) -> Fitted {
         let columns = |r: &Recording| -> Result<Vec<Columns>, CalibrationError> {
-            let column = |name: &str| -> Result<(String, Vec<f64>), CalibrationError> {
-                Ok((name.to_string(), r.column_for(name, "test")?.to_vec()))
-            };
-            Ok(vec![vec![column("x1")?, column("x2")?]])
+            let candidate = names
+                .iter()
+                .map(|&name| Ok((name.to_string(), r.column_for(name, "test")?.to_vec())))
+                .collect::<Result<Columns, CalibrationError>>()?;
+            Ok(vec![candidate])
         };
         fit_best(
             "test",
             "y",
             std::slice::from_ref(database),
             std::slice::from_ref(experiment),
-            "y",
+            target,
             &|_, _, r| columns(r),
             ExperimentUse {
                 scoring: Scoring::Absolute,
@@ -2637,6 +2627,10 @@ mod tests {
             },
         )
         .unwrap()
+    }
+
+    fn fit_x1_x2(database: &Recording, experiment: &Recording) -> Fitted {
+        fit_named(database, experiment, "y", &["x1", "x2"])
     }
 
     /// The real machine responds to x2 the other way round from the database: no offset or
