@@ -216,21 +216,21 @@ impl<R: Read> RecordingReader<R> {
         // The row's text is checked once (UTF-8), not cell by cell; a row that is not text
         // is parsed cell by cell so that the error names the cell.
         let text = std::str::from_utf8(self.record.as_slice()).ok();
+        // The last cell of a CR LF row ends in the CR: the parse trims it, and a message
+        // leaves it out.
         for (i, cell) in self.record.iter().enumerate() {
-            // The last cell of a CR LF row ends in the CR.
-            let cell = trim_line_end(cell);
             let parsed = match text.zip(self.record.range(i)).and_then(|(t, r)| t.get(r)) {
                 Some(text_cell) => parse_text_cell(text_cell),
                 None => parse_cell(cell),
             };
             let value = parsed.ok_or_else(|| RecordingError::NonNumeric {
                 at: self.location(line, Some(i)),
-                cell: quote_cell(cell),
+                cell: quote_cell(trim_line_end(cell)),
             })?;
             if !value.is_finite() {
                 return Err(RecordingError::NonFinite {
                     at: self.location(line, Some(i)),
-                    cell: quote_cell(cell),
+                    cell: quote_cell(trim_line_end(cell)),
                 });
             }
             if let Some((low, high)) = self.schema.range_of(i)
