@@ -1078,18 +1078,15 @@ fn start_columns(experiments: &[&Recording], warm: &[bool], rows: usize) -> Colu
         let time = recording.time();
         let (t0, t_end) = span(time);
         if warm && time.len() >= MIN_EXPERIMENT_ROWS {
-            let mut column = |name: String, value: &dyn Fn(f64) -> f64| {
-                let mut column = vec![0.0; rows];
-                for (slot, &t) in column[at..].iter_mut().zip(time) {
-                    *slot = value(t - t0);
-                }
-                columns.push((name, column));
-            };
             for tau in START_DECAY_TAUS_S
                 .into_iter()
                 .filter(|&tau| tau <= t_end - t0)
             {
-                column(start_term(index, tau), &|t| (-t / tau).exp());
+                let mut column = vec![0.0; rows];
+                for (slot, &t) in column[at..].iter_mut().zip(time) {
+                    *slot = (-(t - t0) / tau).exp();
+                }
+                columns.push((start_term(index, tau), column));
             }
         }
         at += time.len();

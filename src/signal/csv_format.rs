@@ -47,7 +47,7 @@ pub(super) struct RowsRead {
     /// The first row's time and the file line it is on (blank lines and metadata before it
     /// counted).
     pub(super) first: Option<(f64, u64)>,
-    /// The last row's time.
+    /// The last row's time (of a row read before, when this read found none).
     pub(super) last_time_s: Option<f64>,
 }
 
@@ -351,12 +351,10 @@ impl<R: Read> RecordingReader<R> {
         };
         let mut rows = 0u64;
         let mut first: Option<(f64, u64)> = None;
-        let mut last_time_s = None;
         while self.read_row(&mut row)? {
             let line = self.current_line();
             rows += 1;
             first.get_or_insert((row[0], line));
-            last_time_s = Some(row[0]);
             if rows.is_multiple_of(Self::OBSERVED_EVERY) && !observe(rows) {
                 return Err(RecordingError::Stopped {
                     at: self.location(line, None),
@@ -398,7 +396,7 @@ impl<R: Read> RecordingReader<R> {
         let read = RowsRead {
             rows,
             first,
-            last_time_s,
+            last_time_s: self.previous_time,
         };
         Ok((recording, read))
     }
