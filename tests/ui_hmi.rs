@@ -1355,3 +1355,82 @@ fn cancelling_the_discrepancy_job_stops_the_analysis() {
         "the analysis did not run on: {seen:?}"
     );
 }
+
+/// The Source window opens a recording in place of the running twin: a mistyped path is
+/// refused with the file named while the twin runs on; a recording the recorder cut into
+/// pieces is replayed as one, with the running profile's estimators, its own columns on the
+/// Trends panel and the events saying what runs; the way back starts the twin again.
+#[test]
+fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
+    let mut f = start();
+    let mut day = TwinConfig::new(ScenarioKind::Production, Some(1.0), 3);
+    day.rate_hz = 1.0;
+    let day = servosight::sim::simulate(day).expect("the twin runs");
+    let whole = f._dir.path().join("day.csv");
+    servosight::signal::write_recording(&whole, &day).expect("written");
+    let pieces = recorded_in_pieces(&whole, &f._dir.path().join("shift"));
+    let h = &mut f.harness;
+    step_until(h, "the twin's frames", |app| app.state.link.frames > 10);
+    let twin_source = h.state().state.link.source.clone();
+
+    click(h, "Source…");
+    let missing = f._dir.path().join("shfit.csv");
+    type_into(h, "Recording (CSV)", missing.to_str().expect("utf-8 path"));
+    click(h, "Open");
+    step_until(h, "the refusal", |app| app.state.source.error.is_some());
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("shfit.csv"), "{error}");
+    assert!(shows(h, "shfit.csv"), "the window shows why");
+    let frames = h.state().state.link.frames;
+    step_until(h, "the twin running on", |app| {
+        app.state.link.frames > frames + 5 && app.state.link.source == twin_source
+    });
+
+    let first = pieces[0].to_str().expect("utf-8 path").to_string();
+    h.state_mut().settings.forms.open_recording = first;
+    type_into(h, "Speed (× real time)", "600");
+    click(h, "Open");
+    step_until(h, "the recording's frames", |app| {
+        app.state.source.start_source.is_some() && !app.state.latest.row.is_empty()
+    });
+    let app = h.state();
+    assert_ne!(app.state.link.source, twin_source);
+    let change = app.state.source.last_change.clone().unwrap_or_default();
+    assert!(
+        change.contains("(3 pieces)") && change.contains("600 × real time"),
+        "{change}"
+    );
+    assert!(change.contains("the estimators of profile"), "{change}");
+    assert!(
+        app.state.events.iter().any(|e| e.message == change),
+        "the events say what runs"
+    );
+    // The recording's time, not the twin's, and the estimates beside its columns.
+    assert!(app.state.latest.names.iter().any(|n| n.starts_with("est.")));
+    assert!(
+        app.settings
+            .trends
+            .selected
+            .iter()
+            .all(|n| app.state.latest.names.contains(n))
+    );
+    // The whole recording is replayed across its pieces (3600 s at 600 ×: 6 s).
+    step_until_within(h, "the last piece's rows", 40, |app| {
+        app.state
+            .latest
+            .time_s()
+            .is_some_and(|t| t > 2.0 * 3600.0 / 3.0 + 60.0)
+    });
+    assert!(shows(h, "Back to the embedded twin"));
+
+    click(h, "Back to the embedded twin");
+    step_until(h, "the twin again", |app| {
+        app.state.source.start_source.is_none()
+            && app.state.link.source == twin_source
+            && !app.state.latest.row.is_empty()
+    });
+    assert!(
+        h.state().state.latest.time_s().is_some_and(|t| t < 600.0),
+        "the twin starts its program again"
+    );
+}

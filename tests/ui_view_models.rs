@@ -633,6 +633,61 @@ fn compensation_view_models() {
     }
 }
 
+/// The Source window in every state, then while a recording opens, after it failed, and on
+/// a recording opened from it (with the way back to the start source). A push that waits for
+/// its approver refuses the change (the awaiting-approval state).
+#[test]
+fn source_window_view_models() {
+    for which in STATES {
+        let s = state(which);
+        let mut view = vm::source::build(&s);
+        // The request id hashes the time of the request, so it differs on every run.
+        if let (PushFlow::AwaitingApproval { request, .. }, Some(refused)) =
+            (&s.compensation.flow, view.refused.as_mut())
+        {
+            *refused = refused.replace(request.id(), "[request id]");
+        }
+        assert_eq!(
+            view.refused.is_some(),
+            which == "awaiting_approval",
+            "{which}: {:?}",
+            view.refused
+        );
+        insta::assert_yaml_snapshot!(format!("source_{which}"), view);
+    }
+    let mut s = state("normal");
+    s.source.running = Some((
+        "opening /data/shift.csv".into(),
+        JobProgress {
+            stage: "reading the recording's headers".into(),
+            fraction: Some(0.3),
+        },
+    ));
+    insta::assert_yaml_snapshot!("source_opening", vm::source::build(&s));
+    s.source.running = None;
+    s.source.error = Some(
+        "opening /data/shfit.csv failed: /data/shfit.csv: No such file or directory (os error \
+         2); embedded twin runs on"
+            .into(),
+    );
+    insta::assert_yaml_snapshot!("source_failed", vm::source::build(&s));
+    let mut s = state("normal");
+    s.link.source = "replay of /data/shift.csv".into();
+    s.profile = Some(twin_profile());
+    s.source.start_source = Some("the embedded twin".into());
+    s.source.last_change = Some(
+        "source: replaying /data/shift.csv … /data/shift-0002.csv (3 pieces) at 60 × real \
+         time with the estimators of profile `IT-25 lathe (twin)`"
+            .into(),
+    );
+    let view = vm::source::build(&s);
+    assert_eq!(
+        view.return_label.as_deref(),
+        Some("Back to the embedded twin")
+    );
+    insta::assert_yaml_snapshot!("source_on_a_recording", view);
+}
+
 #[test]
 fn model_lab_view_models() {
     for which in STATES {

@@ -11,11 +11,12 @@ use super::analysis::{DepthInput, DepthOutcome, WarmupAnalysis, WarmupInput};
 use super::export_png::{PngFigure, PngOutcome, PngRequest};
 use super::jobs::{FitOutcome, FitRequest, Job, JobMessage, run_fit};
 use super::panels::{self, Forms, Tab, UiCommand};
-use super::session::{Session, SessionCommand};
+use super::session::{Session, SessionCommand, SessionConfig};
 use super::sim_vs_real::{
     DiscrepancyOutcome, DiscrepancyRequest, SavedDiscrepancyReport, SharedColumns, parse_average,
     read_shared_columns, run_discrepancy, run_save_report,
 };
+use super::source::{SourceChange, Switched, parse_open_form, run_switch, source_label};
 use super::state::{
     CompensationState, Event, EventKind, HmiState, LinkSnapshot, PushFlow, Severity,
     StatusThresholds,
@@ -143,41 +144,25 @@ pub struct HmiApp {
     export_note: Option<String>,
     ingest_budget: Duration,
     applied_theme: Option<bool>,
+    /// How the app was set up (a new source's state is built from it).
+    options: HmiOptions,
+    /// The session the HMI was started on, to go back to from a recording.
+    start_config: SessionConfig,
+    /// Starting another source while the running one goes on.
+    switch_job: Option<Job<Switched>>,
 }
 
 impl HmiApp {
     /// The app on a running session.
     pub fn new(session: Session, options: HmiOptions) -> HmiApp {
-        let names = session.schema().names().to_vec();
-        let compensation = CompensationState::new(
-            options.users_path.display().to_string(),
-            options.audit_path.display().to_string(),
-            options.limits,
-        );
-        let mut state = HmiState::new(
-            names.clone(),
-            LinkSnapshot::starting(session.source()),
-            options.history_budget_bytes,
-            compensation,
-        );
-        state.thresholds = options.thresholds;
-        state.estimate_limits = options.estimate_limits;
-        state.profile = session.profile().cloned();
+        let state = fresh_state(&session, &options);
+        let names = state.latest.names.clone();
         let mut settings = options
             .settings_path
             .as_deref()
             .map(Settings::load)
             .unwrap_or_default();
-        // A first start draws the stator temperatures, so the Trends panel is never empty.
-        settings.trends.selected.retain(|n| names.contains(n));
-        settings.trends.hidden.retain(|n| names.contains(n));
-        if settings.trends.selected.is_empty() {
-            settings.trends.selected = AxisId::ALL
-                .into_iter()
-                .map(|a| axis_column(a, Quantity::StatorTemp))
-                .filter(|n| names.contains(n))
-                .collect();
-        }
+        fit_trends_to(&mut settings.trends, &names);
         if settings.forms.export_path.is_empty() {
             settings.forms.export_path = std::env::temp_dir()
                 .join("servosight-trends.csv")
@@ -206,11 +191,12 @@ impl HmiApp {
             settings.forms.workpiece_diameter_mm = "80".into();
         }
         HmiApp {
+            start_config: session.config().clone(),
             session,
             state,
             saved_settings: settings.clone(),
             settings,
-            settings_path: options.settings_path,
+            settings_path: options.settings_path.clone(),
             last_save: Instant::now(),
             fit_job: None,
             warmup_job: None,
@@ -225,6 +211,8 @@ impl HmiApp {
             export_note: None,
             ingest_budget: options.ingest_budget,
             applied_theme: None,
+            options,
+            switch_job: None,
         }
     }
 
@@ -240,6 +228,7 @@ impl HmiApp {
             }
         }
         self.poll_fit_job();
+        self.poll_switch_job();
         self.poll_analysis_jobs();
         self.poll_discrepancy_jobs();
         self.refresh_shared_columns();
@@ -272,7 +261,8 @@ impl HmiApp {
             || self.discrepancy_job.is_some()
             || self.discrepancy_png_job.is_some()
             || self.discrepancy_report_job.is_some()
-            || self.columns_job.is_some();
+            || self.columns_job.is_some()
+            || self.switch_job.is_some();
         ctx.request_repaint_after(if live {
             Duration::from_millis(33)
         } else {
@@ -408,6 +398,140 @@ impl HmiApp {
         if let Some(note) = poll_png_export(&mut self.png_job) {
             self.export_note = Some(note);
         }
+    }
+
+    /// Starts `change` on a job; the running source goes on until the new one has started.
+    fn start_switch(&mut self, change: SourceChange) {
+        if self.switch_job.is_some() {
+            return;
+        }
+        if let Some(reason) = self.state.source_change_refused() {
+            self.state.source.error = Some(reason);
+            return;
+        }
+        let what = match &change {
+            SourceChange::Open(request) => format!("opening {}", request.recording.display()),
+            SourceChange::Return => {
+                format!("going back to {}", source_label(&self.start_config.source))
+            }
+        };
+        let running = self.session.config().clone();
+        let start = self.start_config.clone();
+        match Job::spawn(what.clone(), move |c| run_switch(change, running, start, c)) {
+            Ok(job) => {
+                self.state.source.running = Some((
+                    what,
+                    super::state::JobProgress {
+                        stage: "starting".into(),
+                        fraction: Some(0.0),
+                    },
+                ));
+                self.state.source.error = None;
+                self.switch_job = Some(job);
+            }
+            Err(error) => {
+                self.state.source.error = Some(format!("cannot start {what}: {error}"));
+            }
+        }
+    }
+
+    /// Stops opening a source: the job is asked to stop (a session it has started already is
+    /// ended there) and dropped, so the running source stays.
+    fn cancel_switch(&mut self) {
+        if let Some(job) = self.switch_job.take() {
+            job.cancel();
+            self.state.source.running = None;
+            self.state.source.error = Some(format!("{}: cancelled", job.title));
+        }
+    }
+
+    /// Follows the source change; once the new session runs, it takes the old one's place.
+    fn poll_switch_job(&mut self) {
+        let title = match &self.switch_job {
+            Some(job) => job.title.clone(),
+            None => return,
+        };
+        let mut progress = None;
+        let end = poll_job(&mut self.switch_job, &mut progress);
+        if let Some(progress) = progress {
+            self.state.source.running = Some((title.clone(), progress));
+        }
+        match end {
+            None => {}
+            Some(Ok(switched)) => self.take_session(switched),
+            Some(Err(reason)) => {
+                self.state.source.running = None;
+                let text = format!(
+                    "{title} failed: {reason}; {} runs on",
+                    self.session.source()
+                );
+                self.state.source.error = Some(text.clone());
+                self.job_event(Severity::Warning, text);
+            }
+        }
+    }
+
+    /// Puts a newly started session in place of the running one. What belonged to the old
+    /// source starts afresh (readings, history, checklist, depth of cut, compensation draft);
+    /// the events, the Model lab and the forms stay.
+    fn take_session(&mut self, switched: Switched) {
+        let Switched {
+            session,
+            summary,
+            is_home,
+        } = switched;
+        let old = std::mem::replace(&mut self.session, session);
+        // Ending a session joins its threads and finishes its recorder file: not on the UI
+        // thread. If no thread can be had, it ends here rather than not at all.
+        let ending = std::thread::Builder::new()
+            .name("servosight-session-end".into())
+            .spawn(move || drop(old));
+        if let Err(error) = ending {
+            self.job_event(
+                Severity::Warning,
+                format!("the previous source was ended on the UI thread: {error}"),
+            );
+        }
+        // Work on the old source's samples would be about another source: let it go.
+        let warmup = self.warmup_job.take().map(|job| {
+            job.cancel();
+            job.title
+        });
+        let depth = self.depth_job.take().map(|job| {
+            job.cancel();
+            job.title
+        });
+        for title in [warmup, depth].into_iter().flatten() {
+            self.job_event(
+                Severity::Normal,
+                format!("{title} stopped: its samples were of the previous source"),
+            );
+        }
+        let drafted = self.state.compensation.draft_changes.iter().count();
+        let mut state = fresh_state(&self.session, &self.options);
+        state.events = std::mem::take(&mut self.state.events);
+        state.model_lab = std::mem::take(&mut self.state.model_lab);
+        state.source = std::mem::take(&mut self.state.source);
+        self.state = state;
+        let names = self.state.latest.names.clone();
+        let trends = &mut self.settings.trends;
+        fit_trends_to(trends, &names);
+        trends.follow_live = true;
+        trends.view = None;
+        let source = &mut self.state.source;
+        source.running = None;
+        source.error = None;
+        source.start_source = (!is_home).then(|| source_label(&self.start_config.source));
+        let mut text = format!("source: {summary}");
+        if drafted > 0 {
+            text.push_str(&format!(
+                "; the compensation draft ({drafted} change(s)) was left behind: it was made on the previous source"
+            ));
+        }
+        source.last_change = Some(text.clone());
+        self.state
+            .events
+            .push(Event::now(EventKind::Link, Severity::Normal, text));
     }
 
     /// Follows the sim-vs-real analysis and the header read behind its target choice.
@@ -828,8 +952,18 @@ impl HmiApp {
                 if ui.button(theme).clicked() {
                     commands.push(UiCommand::SetDark(!self.settings.dark));
                 }
+                if ui
+                    .selectable_label(self.settings.forms.source_window, "Source…")
+                    .clicked()
+                {
+                    commands.push(UiCommand::ToggleSourceWindow);
+                }
             });
         });
+        if self.settings.forms.source_window {
+            let view = vm::source::build(&self.state);
+            panels::source::source_ui(ui.ctx(), &view, &mut self.settings.forms, &mut commands);
+        }
         egui::Panel::bottom("status").show(ui, |ui| {
             panels::status::status_ui(ui, &status, &mut commands);
         });
@@ -1045,6 +1179,23 @@ impl HmiApp {
                 }
             }
             UiCommand::SetProblemsOnly(on) => self.settings.events.problems_only = on,
+            UiCommand::ToggleSourceWindow => {
+                self.settings.forms.source_window = !self.settings.forms.source_window;
+            }
+            UiCommand::OpenRecording => {
+                let forms = &self.settings.forms;
+                match parse_open_form(
+                    &forms.open_recording,
+                    forms.open_this_file_only,
+                    &forms.open_speed,
+                    &forms.open_profile,
+                ) {
+                    Ok(request) => self.start_switch(SourceChange::Open(request)),
+                    Err(reason) => self.state.source.error = Some(reason),
+                }
+            }
+            UiCommand::ReturnToStartSource => self.start_switch(SourceChange::Return),
+            UiCommand::CancelSourceChange => self.cancel_switch(),
         }
     }
 
@@ -1169,6 +1320,48 @@ impl HmiApp {
                 self.state.model_lab.error = Some(format!("cannot start the fit: {error}"));
             }
         }
+    }
+}
+
+/// An empty state on `session`'s columns, with the limits and profile it runs with.
+fn fresh_state(session: &Session, options: &HmiOptions) -> HmiState {
+    let compensation = CompensationState::new(
+        options.users_path.display().to_string(),
+        options.audit_path.display().to_string(),
+        options.limits,
+    );
+    let mut state = HmiState::new(
+        session.schema().names().to_vec(),
+        LinkSnapshot::starting(session.source()),
+        options.history_budget_bytes,
+        compensation,
+    );
+    state.thresholds = options.thresholds;
+    state.profile = session.profile().cloned();
+    // The profile's limits where the session runs one; the options' (the start profile's)
+    // were made from the same profile on the start session.
+    state.estimate_limits = match session.profile() {
+        Some(profile) => profile
+            .axes
+            .iter()
+            .map(|(axis, a)| (*axis, a.limits.clone()))
+            .collect(),
+        None => options.estimate_limits.clone(),
+    };
+    state
+}
+
+/// Keeps the Trends choices that name one of `names`; with none left it draws the stator
+/// temperatures, so the Trends panel is never empty.
+fn fit_trends_to(trends: &mut TrendsSettings, names: &[String]) {
+    trends.selected.retain(|n| names.contains(n));
+    trends.hidden.retain(|n| names.contains(n));
+    if trends.selected.is_empty() {
+        trends.selected = AxisId::ALL
+            .into_iter()
+            .map(|a| axis_column(a, Quantity::StatorTemp))
+            .filter(|n| names.contains(n))
+            .collect();
     }
 }
 

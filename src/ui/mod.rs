@@ -10,6 +10,8 @@
 //! - [`history`]: the in-memory decimation pyramid behind the Trends panel.
 //! - [`jobs`]: long work (fitting a model from a big database) on its own thread with progress
 //!   and cancel.
+//! - [`source`]: opening a recording (or going back to the start source) in the running HMI,
+//!   the new session started on a job while the old one runs on.
 //! - [`sim_vs_real`]: the Model lab's sim-vs-real discrepancy analysis as a job, and the
 //!   header read that offers the target columns both files share.
 //! - [`analysis`]: the warm-up checklist's friction fingerprint and backlash analyses and the
@@ -30,6 +32,7 @@ pub mod jobs;
 pub mod panels;
 pub mod session;
 pub mod sim_vs_real;
+pub mod source;
 pub mod state;
 pub mod vm;
 

@@ -214,7 +214,8 @@ pub enum SessionUpdate {
 pub struct Session {
     schema: Schema,
     source: String,
-    profile: Option<MachineProfile>,
+    /// What the session was started with (the HMI opens another source on its settings).
+    config: SessionConfig,
     commands: mpsc::Sender<SessionCommand>,
     updates: mpsc::Receiver<SessionUpdate>,
     thread: Option<std::thread::JoinHandle<()>>,
@@ -343,7 +344,7 @@ impl Session {
         Ok(Session {
             schema,
             source,
-            profile: config.profile,
+            config,
             commands: command_tx,
             updates: update_rx,
             thread: Some(thread),
@@ -362,7 +363,12 @@ impl Session {
 
     /// The machine profile the session's estimators run with.
     pub fn profile(&self) -> Option<&MachineProfile> {
-        self.profile.as_ref()
+        self.config.profile.as_ref()
+    }
+
+    /// What the session was started with.
+    pub fn config(&self) -> &SessionConfig {
+        &self.config
     }
 
     /// Queues a command; never waits.

@@ -77,7 +77,7 @@ impl DiscrepancyRequest {
 
 /// `first`, followed (given `find_later`) by the pieces the recorder continued it in that are
 /// beside it.
-fn real_pieces(first: &Path, find_later: bool) -> Result<Vec<PathBuf>, String> {
+pub(super) fn real_pieces(first: &Path, find_later: bool) -> Result<Vec<PathBuf>, String> {
     let mut pieces = vec![first.to_path_buf()];
     if find_later {
         let later = later_pieces(first)

@@ -538,9 +538,41 @@ pub struct HmiState {
     pub warmup: WarmupState,
     /// The depth-of-cut recommendation.
     pub depth: DepthState,
+    /// Opening another source from the *Source* window.
+    pub source: SourceState,
+}
+
+/// The *Source* window's state: kept when the source changes, like the events.
+#[derive(Debug, Clone, Default)]
+pub struct SourceState {
+    /// What is being opened and how far it is.
+    pub running: Option<(String, JobProgress)>,
+    /// Why the last change failed or stopped (the running source stayed).
+    pub error: Option<String>,
+    /// The source the HMI was started on, while another one runs (`None`: on it).
+    pub start_source: Option<String>,
+    /// The last change, as told in the events.
+    pub last_change: Option<String>,
 }
 
 impl HmiState {
+    /// Why the source may not be changed now (`None`: it may). A push waiting for its
+    /// approver or being written belongs to the running controller: it is finished or
+    /// withdrawn first, so no approval ever meets another source.
+    pub fn source_change_refused(&self) -> Option<String> {
+        match &self.compensation.flow {
+            PushFlow::AwaitingApproval { request, .. } => Some(format!(
+                "request {} waits for its approver: approve or withdraw it first (Compensation)",
+                request.id()
+            )),
+            PushFlow::Writing { request, .. } => Some(format!(
+                "request {} is being written to the controller: wait for its read-back",
+                request.id()
+            )),
+            PushFlow::Idle | PushFlow::Finished(_) => None,
+        }
+    }
+
     /// Where `axis`'s elongation estimate counts from, if the estimators have said.
     pub fn elongation_origin(
         &self,
@@ -599,6 +631,7 @@ impl HmiState {
             profile: None,
             warmup: WarmupState::default(),
             depth: DepthState::default(),
+            source: SourceState::default(),
         }
     }
 

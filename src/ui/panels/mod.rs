@@ -6,6 +6,7 @@ pub mod depth;
 pub mod events;
 pub mod model_lab;
 pub mod overview;
+pub mod source;
 pub mod status;
 pub mod trends;
 pub mod warmup;
@@ -134,6 +135,14 @@ pub enum UiCommand {
     ToggleEventKind(EventKind),
     /// Show only warnings and faults.
     SetProblemsOnly(bool),
+    /// Show or hide the *Source* window.
+    ToggleSourceWindow,
+    /// Open the recording in the *Source* window's form in place of the running source.
+    OpenRecording,
+    /// Go back to the source the HMI was started on.
+    ReturnToStartSource,
+    /// Stop opening a source (the running one stays).
+    CancelSourceChange,
 }
 
 /// The Model lab's sections.
@@ -201,6 +210,17 @@ pub struct Forms {
     /// The Events panel's text filter.
     #[serde(skip)]
     pub event_text: String,
+    /// The recording the *Source* window opens.
+    pub open_recording: String,
+    /// Open only that file, not the pieces the recorder continued it in.
+    pub open_this_file_only: bool,
+    /// Its replay speed, × real time (blank: real time).
+    pub open_speed: String,
+    /// The machine profile its estimators run with (blank: the running session's).
+    pub open_profile: String,
+    /// Whether the *Source* window is shown.
+    #[serde(skip)]
+    pub source_window: bool,
 }
 
 /// `plot` with its value axis on steps of 1, 2 and 5 × 10ⁿ, labelled with as many decimals
@@ -300,6 +320,40 @@ pub fn labelled_text(
     let label = ui.label(label);
     ui.add(egui::TextEdit::singleline(text).desired_width(width))
         .labelled_by(label.id)
+}
+
+/// A job's progress bar with its Cancel button, or the start button.
+pub(super) fn job_row(
+    ui: &mut egui::Ui,
+    running: Option<&super::state::JobProgress>,
+    start: (&str, UiCommand),
+    cancel: UiCommand,
+    commands: &mut Vec<UiCommand>,
+) {
+    ui.horizontal(|ui| match running {
+        Some(progress) => {
+            let bar = egui::ProgressBar::new(progress.fraction.unwrap_or(0.0))
+                .text(&progress.stage)
+                .desired_width(420.0)
+                .animate(true);
+            ui.add(bar);
+            if ui.button("Cancel").clicked() {
+                commands.push(cancel);
+            }
+        }
+        None => {
+            if ui.button(start.0).clicked() {
+                commands.push(start.1);
+            }
+        }
+    });
+}
+
+/// A failed job's reason, in the fault colour.
+pub(super) fn error_line(ui: &mut egui::Ui, error: Option<&String>) {
+    if let Some(error) = error {
+        ui.colored_label(severity_color(Severity::Fault), error);
+    }
 }
 
 #[cfg(test)]

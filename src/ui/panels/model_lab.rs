@@ -4,8 +4,7 @@
 use eframe::egui;
 use egui_plot::{Legend, Line, Plot, PlotPoints, Span};
 
-use super::{Forms, LabSection, UiCommand, labelled_text};
-use crate::ui::state::JobProgress;
+use super::{Forms, LabSection, UiCommand, error_line, job_row, labelled_text};
 use crate::ui::vm::discrepancy::{DiscrepancyResultView, DiscrepancyView};
 use crate::ui::vm::model_lab::ModelLabView;
 
@@ -25,42 +24,6 @@ pub fn section_ui(ui: &mut egui::Ui, forms: &mut Forms) {
         }
     });
     ui.separator();
-}
-
-/// A job's progress bar with its Cancel button, or the start button.
-fn job_row(
-    ui: &mut egui::Ui,
-    running: Option<&JobProgress>,
-    start: (&str, UiCommand),
-    cancel: UiCommand,
-    commands: &mut Vec<UiCommand>,
-) {
-    ui.horizontal(|ui| match running {
-        Some(progress) => {
-            let bar = egui::ProgressBar::new(progress.fraction.unwrap_or(0.0))
-                .text(&progress.stage)
-                .desired_width(420.0)
-                .animate(true);
-            ui.add(bar);
-            if ui.button("Cancel").clicked() {
-                commands.push(cancel);
-            }
-        }
-        None => {
-            if ui.button(start.0).clicked() {
-                commands.push(start.1);
-            }
-        }
-    });
-}
-
-fn error_line(ui: &mut egui::Ui, error: Option<&String>) {
-    if let Some(error) = error {
-        ui.colored_label(
-            super::severity_color(crate::ui::state::Severity::Fault),
-            error,
-        );
-    }
 }
 
 /// Draws the fit section.

@@ -13,6 +13,7 @@ pub mod discrepancy;
 pub mod events;
 pub mod model_lab;
 pub mod overview;
+pub mod source;
 pub mod status;
 pub mod trends;
 pub mod warmup;

@@ -1,0 +1,79 @@
+//! The *Source* window: the running source, a recording to open in its place, and the way
+//! back to the source the HMI was started on.
+
+use eframe::egui;
+
+use super::{Forms, UiCommand, error_line, job_row, labelled_text};
+use crate::ui::vm::source::SourceView;
+
+/// Draws the window while `forms.source_window` is set (its close button clears it).
+pub fn source_ui(
+    ctx: &egui::Context,
+    view: &SourceView,
+    forms: &mut Forms,
+    commands: &mut Vec<UiCommand>,
+) {
+    let mut open = forms.source_window;
+    egui::Window::new("Source")
+        .open(&mut open)
+        .resizable(false)
+        .default_width(560.0)
+        .show(ctx, |ui| {
+            ui.label(format!("Running: {}", view.current));
+            if let Some(change) = &view.last_change {
+                ui.small(change);
+            }
+            ui.separator();
+            ui.strong("Open a recording");
+            ui.label(
+                "It is replayed in place of the running source, on the same recorder, users \
+                 and audit log; the checklist, the trends and the depth of cut start afresh \
+                 on it. The pieces the recorder continued it in (NAME-0001.csv, … beside it) \
+                 follow it.",
+            );
+            egui::Grid::new("open recording form")
+                .num_columns(2)
+                .spacing([8.0, 6.0])
+                .show(ui, |ui| {
+                    labelled_text(ui, "Recording (CSV)", &mut forms.open_recording, 380.0);
+                    ui.end_row();
+                    ui.label("");
+                    ui.checkbox(&mut forms.open_this_file_only, "this file only");
+                    ui.end_row();
+                    labelled_text(ui, "Speed (× real time)", &mut forms.open_speed, 80.0);
+                    ui.end_row();
+                    labelled_text(ui, "Machine profile (TOML)", &mut forms.open_profile, 380.0);
+                    ui.end_row();
+                    ui.label("");
+                    ui.small(&view.profile_hint);
+                    ui.end_row();
+                });
+            match &view.refused {
+                Some(reason) => {
+                    ui.add_enabled(false, egui::Button::new("Open"));
+                    ui.colored_label(
+                        super::severity_color(crate::ui::state::Severity::Warning),
+                        reason,
+                    );
+                }
+                None => job_row(
+                    ui,
+                    view.running.as_ref(),
+                    ("Open", UiCommand::OpenRecording),
+                    UiCommand::CancelSourceChange,
+                    commands,
+                ),
+            }
+            error_line(ui, view.error.as_ref());
+            if let Some(label) = &view.return_label {
+                ui.separator();
+                let enabled = view.refused.is_none() && view.running.is_none();
+                if ui.add_enabled(enabled, egui::Button::new(label)).clicked() {
+                    commands.push(UiCommand::ReturnToStartSource);
+                }
+            }
+        });
+    if open != forms.source_window {
+        commands.push(UiCommand::ToggleSourceWindow);
+    }
+}
