@@ -261,6 +261,15 @@ pub enum ProfileError {
 }
 
 impl MachineProfile {
+    /// Each axis's limits (warning and fault thresholds of its estimates), by axis: what the
+    /// HMI judges the estimates against.
+    pub fn axis_limits(&self) -> BTreeMap<AxisId, AxisLimits> {
+        self.axes
+            .iter()
+            .map(|(axis, a)| (*axis, a.limits.clone()))
+            .collect()
+    }
+
     /// Reads and validates a profile file.
     pub fn load(path: &Path) -> Result<MachineProfile, ProfileError> {
         let name = path.display().to_string();

@@ -77,11 +77,6 @@ fn start_on(
             settings_path: None,
             history_budget_bytes,
             thresholds: StatusThresholds::default(),
-            estimate_limits: profile
-                .axes
-                .iter()
-                .map(|(axis, a)| (*axis, a.limits.clone()))
-                .collect(),
             users_path,
             audit_path: audit_path.clone(),
             limits: CompensationLimits::default(),
@@ -1356,21 +1351,33 @@ fn cancelling_the_discrepancy_job_stops_the_analysis() {
     );
 }
 
-/// The Source window opens a recording in place of the running twin: a mistyped path is
-/// refused with the file named while the twin runs on; a recording the recorder cut into
-/// pieces is replayed as one, with the running profile's estimators, its own columns on the
-/// Trends panel and the events saying what runs; the way back starts the twin again.
-#[test]
-fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
-    let mut f = start();
+/// A small recording of the twin (1 h at 1 Hz), and the same cut into the three pieces a
+/// recorder would have written in `dir/shift`.
+fn hour_in_pieces(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     let mut day = TwinConfig::new(ScenarioKind::Production, Some(1.0), 3);
     day.rate_hz = 1.0;
     let day = servosight::sim::simulate(day).expect("the twin runs");
-    let whole = f._dir.path().join("day.csv");
+    let whole = dir.join("day.csv");
     servosight::signal::write_recording(&whole, &day).expect("written");
-    let pieces = recorded_in_pieces(&whole, &f._dir.path().join("shift"));
+    recorded_in_pieces(&whole, &dir.join("shift"))
+}
+
+fn recordings_in(dir: &std::path::Path) -> usize {
+    std::fs::read_dir(dir).map_or(0, |entries| entries.count())
+}
+
+/// The Source window opens a recording in place of the running twin: a mistyped path is
+/// refused with the file named while the twin runs on; a recording the recorder cut into
+/// pieces is replayed as one, with the running profile's estimators, its own columns on the
+/// Trends panel and the events saying what runs, and is not recorded again; paused it sends
+/// nothing, and it runs at the speed set; the way back starts the twin again (recorded).
+#[test]
+fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
+    let mut f = start();
+    let pieces = hour_in_pieces(f._dir.path());
     let h = &mut f.harness;
     step_until(h, "the twin's frames", |app| app.state.link.frames > 10);
+    assert_eq!(recordings_in(&f.record_dir), 1, "the twin is recorded");
     let twin_source = h.state().state.link.source.clone();
 
     click(h, "Source…");
@@ -1391,7 +1398,7 @@ fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
     type_into(h, "Speed (× real time)", "600");
     click(h, "Open");
     step_until(h, "the recording's frames", |app| {
-        app.state.source.start_source.is_some() && !app.state.latest.row.is_empty()
+        app.state.source.start_source_label.is_some() && !app.state.latest.row.is_empty()
     });
     let app = h.state();
     assert_ne!(app.state.link.source, twin_source);
@@ -1401,6 +1408,11 @@ fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
         "{change}"
     );
     assert!(change.contains("the estimators of profile"), "{change}");
+    assert!(change.contains("not recorded again"), "{change}");
+    assert!(
+        shows(h, "embedded twin is not running"),
+        "the status bar says so"
+    );
     assert!(
         app.state.events.iter().any(|e| e.message == change),
         "the events say what runs"
@@ -1421,11 +1433,15 @@ fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
             .time_s()
             .is_some_and(|t| t > 2.0 * 3600.0 / 3.0 + 60.0)
     });
-    assert!(shows(h, "Back to the embedded twin"));
+    assert_eq!(
+        recordings_in(&f.record_dir),
+        1,
+        "a recording is not recorded again"
+    );
 
-    click(h, "Back to the embedded twin");
+    click(h, "Back to the start source (embedded twin)");
     step_until(h, "the twin again", |app| {
-        app.state.source.start_source.is_none()
+        app.state.source.start_source_label.is_none()
             && app.state.link.source == twin_source
             && !app.state.latest.row.is_empty()
     });
@@ -1433,4 +1449,55 @@ fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
         h.state().state.latest.time_s().is_some_and(|t| t < 600.0),
         "the twin starts its program again"
     );
+    assert!(!shows(h, "is not running"));
+    step_until(h, "the twin's new recording", |_| {
+        recordings_in(&f.record_dir) == 2
+    });
+}
+
+/// A push waiting for its approver keeps the source it was requested on: opening a
+/// recording is refused with why, and once the request is withdrawn it opens; a profile file
+/// that cannot be read is refused with its name and the running source stays.
+#[test]
+fn a_push_waiting_for_its_approver_keeps_the_source() {
+    use servosight::ui::panels::UiCommand;
+    let mut f = start();
+    let pieces = hour_in_pieces(f._dir.path());
+    let h = &mut f.harness;
+    step_until(h, "users", |app| {
+        app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
+    });
+    click(h, "Compensation");
+    type_into(h, "New value [µm]", "2.5");
+    click(h, "Add change");
+    type_into(h, "Why", "test");
+    type_into(h, "Operator", "otto");
+    click(h, "Request push");
+    let twin_source = h.state().state.link.source.clone();
+    h.state_mut().settings.forms.open_recording = pieces[0].display().to_string();
+    h.state_mut().execute(UiCommand::OpenRecording);
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("waits for its approver"), "{error}");
+    assert!(
+        h.state().state.source.running.is_none(),
+        "nothing was started"
+    );
+
+    click(h, "Cancel request");
+    let missing = f._dir.path().join("no-such-profile.toml");
+    h.state_mut().settings.forms.open_profile = missing.display().to_string();
+    h.state_mut().execute(UiCommand::OpenRecording);
+    step_until(h, "the profile's refusal", |app| {
+        app.state.source.running.is_none() && app.state.source.error.is_some()
+    });
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("no-such-profile.toml"), "{error}");
+    assert_eq!(h.state().state.link.source, twin_source);
+
+    h.state_mut().settings.forms.open_profile.clear();
+    h.state_mut().execute(UiCommand::OpenRecording);
+    step_until(h, "the recording", |app| {
+        app.state.source.start_source_label.is_some()
+    });
+    assert_ne!(h.state().state.link.source, twin_source);
 }

@@ -190,11 +190,7 @@ fn state(which: &str) -> HmiState {
         "/assets/it25-twin.toml"
     )))
     .expect("twin profile");
-    s.estimate_limits = profile
-        .axes
-        .iter()
-        .map(|(axis, a)| (*axis, a.limits.clone()))
-        .collect();
+    s.estimate_limits = profile.axis_limits();
     s.recorder = RecorderSnapshot {
         state: RecorderState::Recording,
         path: Some("/data/recordings/recording-2026-03-02T06-00-00-000Z.csv".into()),
@@ -653,16 +649,19 @@ fn source_window_view_models() {
             "{which}: {:?}",
             view.refused
         );
-        insta::assert_yaml_snapshot!(format!("source_{which}"), view);
+        // The other states differ from the normal one only in the link's word.
+        if matches!(which, "normal" | "awaiting_approval") {
+            insta::assert_yaml_snapshot!(format!("source_{which}"), view);
+        }
     }
     let mut s = state("normal");
-    s.source.running = Some((
-        "opening /data/shift.csv".into(),
-        JobProgress {
+    s.source.running = Some(servosight::ui::state::SourceChangeProgress {
+        what: "opening /data/shift.csv".into(),
+        progress: JobProgress {
             stage: "reading the recording's headers".into(),
             fraction: Some(0.3),
         },
-    ));
+    });
     insta::assert_yaml_snapshot!("source_opening", vm::source::build(&s));
     s.source.running = None;
     s.source.error = Some(
@@ -674,18 +673,35 @@ fn source_window_view_models() {
     let mut s = state("normal");
     s.link.source = "replay of /data/shift.csv".into();
     s.profile = Some(twin_profile());
-    s.source.start_source = Some("the embedded twin".into());
+    s.source.start_source_label = Some("embedded twin".into());
+    s.source.pace = Some(servosight::ui::session::Pace {
+        paused: true,
+        speed: servosight::link::ReplaySpeed::Factor(60.0),
+    });
     s.source.last_change = Some(
         "source: replaying /data/shift.csv … /data/shift-0002.csv (3 pieces) at 60 × real \
-         time with the estimators of profile `IT-25 lathe (twin)`"
+         time with the estimators of profile `IT-25 lathe (twin)`, not recorded again (it is on \
+         disk)"
             .into(),
     );
     let view = vm::source::build(&s);
     assert_eq!(
         view.return_label.as_deref(),
-        Some("Back to the embedded twin")
+        Some("Back to the start source (embedded twin)")
+    );
+    assert_eq!(
+        view.pace.as_ref().map(|p| p.text.as_str()),
+        Some("60 × real time, paused")
     );
     insta::assert_yaml_snapshot!("source_on_a_recording", view);
+    insta::assert_yaml_snapshot!("status_away_from_start", vm::status::build(&s));
+    // On a controller, opening a recording says what it stops.
+    let mut s = state("normal");
+    s.link.source = "Modbus RTU /dev/ttyUSB0 @ 115200 baud, slave 1".into();
+    s.source.controller = Some(s.link.source.clone());
+    let view = vm::source::build(&s);
+    assert!(view.pace.is_none(), "a controller runs at its own pace");
+    insta::assert_yaml_snapshot!("source_on_a_controller", view);
 }
 
 #[test]

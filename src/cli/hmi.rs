@@ -130,15 +130,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, SourceSpec::Twin { .. }) => Some(MachineProfile::twin_calibrated()?),
         (None, _) => None,
     };
-    let estimate_limits = profile
-        .as_ref()
-        .map(|p| {
-            p.axes
-                .iter()
-                .map(|(axis, a)| (*axis, a.limits.clone()))
-                .collect()
-        })
-        .unwrap_or_default();
     let users_path = args
         .users
         .clone()
@@ -171,7 +162,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 fault: args.stator_fault_c,
             },
         },
-        estimate_limits,
         users_path,
         audit_path,
         limits,

@@ -14,5 +14,6 @@ pub use csv_format::{
 pub use error::{Location, RecordingError};
 pub use pieces::{
     ReadProgress, RecordingPieces, group_pieces, later_pieces, piece_path, read_pieces,
+    with_later_pieces,
 };
 pub use recording::{Recording, Schema};

@@ -312,6 +312,19 @@ pub fn piece_path(first: &Path, part: u32) -> PathBuf {
     first.with_file_name(format!("{stem}-{part:04}.{extension}"))
 }
 
+/// The files to read for the recording `first`: itself, then (given `find_later`) the pieces
+/// the recorder continued it in ([`later_pieces`]). The error says which directory could not
+/// be looked in. Lists a directory, so call it off the UI thread.
+pub fn with_later_pieces(first: &Path, find_later: bool) -> Result<Vec<PathBuf>, String> {
+    let mut pieces = vec![first.to_path_buf()];
+    if find_later {
+        let later = later_pieces(first)
+            .map_err(|e| format!("cannot look for the pieces beside {}: {e}", first.display()))?;
+        pieces.extend(later);
+    }
+    Ok(pieces)
+}
+
 /// The pieces a recorder continued the recording `first` in, as [`piece_path`] names them,
 /// that are in `first`'s directory, in the order of their numbers (a number may be missing: a
 /// recorder skips a name an earlier run took). Where `first` says which recording it is

@@ -11,15 +11,17 @@ use super::analysis::{DepthInput, DepthOutcome, WarmupAnalysis, WarmupInput};
 use super::export_png::{PngFigure, PngOutcome, PngRequest};
 use super::jobs::{FitOutcome, FitRequest, Job, JobMessage, run_fit};
 use super::panels::{self, Forms, Tab, UiCommand};
-use super::session::{Session, SessionCommand, SessionConfig};
+use super::session::{Session, SessionCommand, SessionConfig, SourceSpec, pace_of};
 use super::sim_vs_real::{
     DiscrepancyOutcome, DiscrepancyRequest, SavedDiscrepancyReport, SharedColumns, parse_average,
     read_shared_columns, run_discrepancy, run_save_report,
 };
-use super::source::{SourceChange, Switched, parse_open_form, run_switch, source_label};
+use super::source::{
+    SourceChange, SwitchContext, Switched, parse_open_form, parse_speed, run_switch,
+};
 use super::state::{
-    CompensationState, Event, EventKind, HmiState, LinkSnapshot, PushFlow, Severity,
-    StatusThresholds,
+    CompensationState, Event, EventKind, HmiState, JobProgress, LinkSnapshot, PushFlow, Severity,
+    SourceChangeProgress, StatusThresholds,
 };
 use super::vm;
 use super::vm::events::EventFilter;
@@ -92,8 +94,6 @@ pub struct HmiOptions {
     pub history_budget_bytes: usize,
     /// Limits of the live readings.
     pub thresholds: StatusThresholds,
-    /// Limits of the estimates per axis (from the machine profile).
-    pub estimate_limits: std::collections::BTreeMap<AxisId, crate::profile::AxisLimits>,
     /// The users file shown in the Compensation panel.
     pub users_path: PathBuf,
     /// The audit log shown in the Compensation panel.
@@ -148,8 +148,12 @@ pub struct HmiApp {
     options: HmiOptions,
     /// The session the HMI was started on, to go back to from a recording.
     start_config: SessionConfig,
+    /// What its link called it.
+    start_label: String,
     /// Starting another source while the running one goes on.
     switch_job: Option<Job<Switched>>,
+    /// Sessions ending off the UI thread (the next change and the exit wait for them).
+    endings: Vec<std::thread::JoinHandle<()>>,
 }
 
 impl HmiApp {
@@ -192,6 +196,8 @@ impl HmiApp {
         }
         HmiApp {
             start_config: session.config().clone(),
+            start_label: session.source().to_string(),
+            endings: Vec::new(),
             session,
             state,
             saved_settings: settings.clone(),
@@ -411,21 +417,31 @@ impl HmiApp {
         }
         let what = match &change {
             SourceChange::Open(request) => format!("opening {}", request.recording.display()),
-            SourceChange::Return => {
-                format!("going back to {}", source_label(&self.start_config.source))
-            }
+            SourceChange::Return => format!("going back to {}", self.start_label),
         };
-        let running = self.session.config().clone();
-        let start = self.start_config.clone();
-        match Job::spawn(what.clone(), move |c| run_switch(change, running, start, c)) {
+        // Asked now, so the state is saved from where the running session is; the job waits
+        // for it only if the new session takes up the same file.
+        let (saved_tx, saved_rx) = std::sync::mpsc::sync_channel(1);
+        let running_saved = self
+            .session
+            .send(SessionCommand::SaveStateNow(saved_tx))
+            .is_ok()
+            .then_some(saved_rx);
+        let inputs = SwitchContext {
+            running: self.session.config().clone(),
+            start: self.start_config.clone(),
+            earlier_endings: std::mem::take(&mut self.endings),
+            running_saved,
+        };
+        match Job::spawn(what.clone(), move |c| run_switch(change, inputs, c)) {
             Ok(job) => {
-                self.state.source.running = Some((
+                self.state.source.running = Some(SourceChangeProgress {
                     what,
-                    super::state::JobProgress {
+                    progress: JobProgress {
                         stage: "starting".into(),
                         fraction: Some(0.0),
                     },
-                ));
+                });
                 self.state.source.error = None;
                 self.switch_job = Some(job);
             }
@@ -435,14 +451,21 @@ impl HmiApp {
         }
     }
 
-    /// Stops opening a source: the job is asked to stop (a session it has started already is
-    /// ended there) and dropped, so the running source stays.
+    /// Stops opening a source: the job is asked to stop (a session it starts after this is
+    /// ended there) and dropped, so the running source stays. A session it had already
+    /// started is ended off the UI thread.
     fn cancel_switch(&mut self) {
-        if let Some(job) = self.switch_job.take() {
-            job.cancel();
-            self.state.source.running = None;
-            self.state.source.error = Some(format!("{}: cancelled", job.title));
+        let Some(job) = self.switch_job.take() else {
+            return;
+        };
+        job.cancel();
+        while let Some(message) = job.try_next() {
+            if let JobMessage::Done(switched) = message {
+                self.end_off_the_ui_thread(switched.session, None);
+            }
         }
+        self.state.source.running = None;
+        self.state.source.error = Some(format!("{}: cancelled", job.title));
     }
 
     /// Follows the source change; once the new session runs, it takes the old one's place.
@@ -454,43 +477,64 @@ impl HmiApp {
         let mut progress = None;
         let end = poll_job(&mut self.switch_job, &mut progress);
         if let Some(progress) = progress {
-            self.state.source.running = Some((title.clone(), progress));
+            self.state.source.running = Some(SourceChangeProgress {
+                what: title.clone(),
+                progress,
+            });
         }
-        match end {
-            None => {}
-            Some(Ok(switched)) => self.take_session(switched),
-            Some(Err(reason)) => {
-                self.state.source.running = None;
-                let text = format!(
-                    "{title} failed: {reason}; {} runs on",
-                    self.session.source()
-                );
-                self.state.source.error = Some(text.clone());
-                self.job_event(Severity::Warning, text);
-            }
+        let reason = match end {
+            None => return,
+            Some(Ok(switched)) => match self.state.source_change_refused() {
+                None => return self.take_session(switched),
+                // Requests are refused while the change runs; should one have begun all the
+                // same, it stays with the source it was made on.
+                Some(reason) => {
+                    self.end_off_the_ui_thread(switched.session, None);
+                    reason
+                }
+            },
+            Some(Err(reason)) => reason,
+        };
+        self.state.source.running = None;
+        let text = format!(
+            "{title} failed: {reason}; {} runs on",
+            self.session.source()
+        );
+        self.state.source.error = Some(text.clone());
+        self.job_event(Severity::Warning, text);
+    }
+
+    /// Ends `session` (joining its threads, finishing its recorder file) and frees `state`
+    /// (its history may hold hundreds of megabytes) on a thread of their own; the next source
+    /// change, and the app's exit, wait for it. Without a thread they end here.
+    fn end_off_the_ui_thread(&mut self, session: Session, state: Option<HmiState>) {
+        let ending = std::thread::Builder::new()
+            .name("servosight-session-end".into())
+            .spawn(move || drop((session, state)));
+        match ending {
+            Ok(handle) => self.endings.push(handle),
+            Err(error) => self.job_event(
+                Severity::Warning,
+                format!("the previous source was ended on the UI thread: {error}"),
+            ),
         }
     }
 
     /// Puts a newly started session in place of the running one. What belonged to the old
     /// source starts afresh (readings, history, checklist, depth of cut, compensation draft);
-    /// the events, the Model lab and the forms stay.
+    /// the events, the Model lab, the forms and the Trends choices stay.
     fn take_session(&mut self, switched: Switched) {
         let Switched {
             session,
             summary,
-            is_home,
+            is_start,
         } = switched;
-        let old = std::mem::replace(&mut self.session, session);
-        // Ending a session joins its threads and finishes its recorder file: not on the UI
-        // thread. If no thread can be had, it ends here rather than not at all.
-        let ending = std::thread::Builder::new()
-            .name("servosight-session-end".into())
-            .spawn(move || drop(old));
-        if let Err(error) = ending {
-            self.job_event(
-                Severity::Warning,
-                format!("the previous source was ended on the UI thread: {error}"),
-            );
+        let mut old = std::mem::replace(&mut self.session, session);
+        // What the old session still had to say (a recorder or link fault) is kept.
+        while let Some(update) = old.try_recv() {
+            if let super::session::SessionUpdate::Event(event) = update {
+                self.state.events.push(event);
+            }
         }
         // Work on the old source's samples would be about another source: let it go.
         let warmup = self.warmup_job.take().map(|job| {
@@ -507,28 +551,40 @@ impl HmiApp {
                 format!("{title} stopped: its samples were of the previous source"),
             );
         }
+        self.depth_refreshed = None;
         let drafted = self.state.compensation.draft_changes.iter().count();
         let mut state = fresh_state(&self.session, &self.options);
         state.events = std::mem::take(&mut self.state.events);
         state.model_lab = std::mem::take(&mut self.state.model_lab);
+        let running = (state.source.pace, state.source.controller.take());
         state.source = std::mem::take(&mut self.state.source);
-        self.state = state;
+        (state.source.pace, state.source.controller) = running;
+        let old_state = std::mem::replace(&mut self.state, state);
+        self.end_off_the_ui_thread(old, Some(old_state));
         let names = self.state.latest.names.clone();
         let trends = &mut self.settings.trends;
-        fit_trends_to(trends, &names);
+        // The choices are kept for the source they name (a way back finds them); only if
+        // none of them is a column here are the stator temperatures added.
+        if !trends.selected.iter().any(|n| names.contains(n)) {
+            trends.selected.extend(default_trend_channels(&names));
+        }
         trends.follow_live = true;
         trends.view = None;
-        let source = &mut self.state.source;
-        source.running = None;
-        source.error = None;
-        source.start_source = (!is_home).then(|| source_label(&self.start_config.source));
         let mut text = format!("source: {summary}");
         if drafted > 0 {
             text.push_str(&format!(
-                "; the compensation draft ({drafted} change(s)) was left behind: it was made on the previous source"
+                "; the compensation draft ({drafted} change(s)) and its why and evidence were \
+                 left behind: they were made on the previous source"
             ));
+            self.settings.forms.why.clear();
+            self.settings.forms.evidence.clear();
         }
+        let source = &mut self.state.source;
+        source.running = None;
+        source.error = None;
+        source.start_source_label = (!is_start).then(|| self.start_label.clone());
         source.last_change = Some(text.clone());
+        self.settings.forms.open_leave_controller = false;
         self.state
             .events
             .push(Event::now(EventKind::Link, Severity::Normal, text));
@@ -1184,6 +1240,15 @@ impl HmiApp {
             }
             UiCommand::OpenRecording => {
                 let forms = &self.settings.forms;
+                if let Some(controller) = &self.state.source.controller
+                    && !forms.open_leave_controller
+                {
+                    self.state.source.error = Some(format!(
+                        "tick “stop monitoring the controller” first: while the recording \
+                         runs, {controller} is neither watched nor recorded"
+                    ));
+                    return;
+                }
                 match parse_open_form(
                     &forms.open_recording,
                     forms.open_this_file_only,
@@ -1196,6 +1261,29 @@ impl HmiApp {
             }
             UiCommand::ReturnToStartSource => self.start_switch(SourceChange::Return),
             UiCommand::CancelSourceChange => self.cancel_switch(),
+            UiCommand::SetPaused(paused) => {
+                if let Some(pace) = self.state.source.pace.as_mut() {
+                    pace.paused = paused;
+                    self.send(SessionCommand::SetPaused(paused));
+                    let word = if paused { "paused" } else { "resumed" };
+                    let text = format!("{} {word}", self.session.source());
+                    self.job_event(Severity::Normal, text);
+                }
+            }
+            UiCommand::SetSpeed => match parse_speed(&self.settings.forms.running_speed) {
+                Ok(factor) => {
+                    let speed = crate::link::ReplaySpeed::Factor(factor);
+                    if let Some(pace) = self.state.source.pace.as_mut() {
+                        pace.speed = speed;
+                        self.state.source.error = None;
+                        self.send(SessionCommand::SetSpeed(speed));
+                        let text =
+                            format!("{} runs at {factor} × real time", self.session.source());
+                        self.job_event(Severity::Normal, text);
+                    }
+                }
+                Err(reason) => self.state.source.error = Some(reason),
+            },
         }
     }
 
@@ -1242,6 +1330,14 @@ impl HmiApp {
 
     fn request(&mut self, proposal: Proposal) {
         let comp = &mut self.state.compensation;
+        if self.switch_job.is_some() {
+            comp.notice = Some(
+                "the source is changing (Source window): request once it has, on the source \
+                 that then runs"
+                    .into(),
+            );
+            return;
+        }
         let operator = self.settings.forms.operator.trim().to_string();
         if operator.is_empty() {
             comp.notice = Some("enter the operator's name before requesting".into());
@@ -1272,6 +1368,12 @@ impl HmiApp {
         let PushFlow::AwaitingApproval { request, .. } = &self.state.compensation.flow else {
             return;
         };
+        if self.switch_job.is_some() {
+            self.state.compensation.notice = Some(
+                "the source is changing (Source window): approve once it has, or withdraw".into(),
+            );
+            return;
+        }
         let request = request.clone();
         let approver = self.settings.forms.approver.trim().to_string();
         let password = std::mem::take(&mut self.settings.forms.password);
@@ -1338,16 +1440,13 @@ fn fresh_state(session: &Session, options: &HmiOptions) -> HmiState {
     );
     state.thresholds = options.thresholds;
     state.profile = session.profile().cloned();
-    // The profile's limits where the session runs one; the options' (the start profile's)
-    // were made from the same profile on the start session.
-    state.estimate_limits = match session.profile() {
-        Some(profile) => profile
-            .axes
-            .iter()
-            .map(|(axis, a)| (*axis, a.limits.clone()))
-            .collect(),
-        None => options.estimate_limits.clone(),
-    };
+    state.source.pace = pace_of(&session.config().source);
+    state.source.controller = matches!(session.config().source, SourceSpec::Serial(_))
+        .then(|| session.source().to_string());
+    state.estimate_limits = session
+        .profile()
+        .map(crate::profile::MachineProfile::axis_limits)
+        .unwrap_or_default();
     state
 }
 
@@ -1357,12 +1456,18 @@ fn fit_trends_to(trends: &mut TrendsSettings, names: &[String]) {
     trends.selected.retain(|n| names.contains(n));
     trends.hidden.retain(|n| names.contains(n));
     if trends.selected.is_empty() {
-        trends.selected = AxisId::ALL
-            .into_iter()
-            .map(|a| axis_column(a, Quantity::StatorTemp))
-            .filter(|n| names.contains(n))
-            .collect();
+        trends.selected = default_trend_channels(names);
     }
+}
+
+/// The stator temperatures among `names`: what the Trends panel draws when nothing chosen is
+/// there.
+fn default_trend_channels(names: &[String]) -> Vec<String> {
+    AxisId::ALL
+        .into_iter()
+        .map(|a| axis_column(a, Quantity::StatorTemp))
+        .filter(|n| names.contains(n))
+        .collect()
 }
 
 /// Starts drawing `request` into its PNG on a job; returns the job (`None` when it could not
@@ -1428,5 +1533,10 @@ impl eframe::App for HmiApp {
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
         self.last_save = Instant::now() - SAVE_EVERY;
         self.save_settings();
+        // A session ending since a source change finishes its recorder file and saves its
+        // estimators' state before the process goes.
+        for ending in self.endings.drain(..) {
+            let _ = ending.join();
+        }
     }
 }

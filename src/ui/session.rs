@@ -104,6 +104,31 @@ pub fn estimator_state_path(
     Some((data_dir.join(format!("estimator-state-{kind}.json")), clock))
 }
 
+/// How a source's time is paced: a replay and the twin can be paused and sped up; a
+/// controller runs at its own pace (`None`).
+pub fn pace_of(source: &SourceSpec) -> Option<Pace> {
+    match source {
+        SourceSpec::Twin { speed, .. } => Some(Pace {
+            paused: false,
+            speed: *speed,
+        }),
+        SourceSpec::Replay { options, .. } => Some(Pace {
+            paused: options.paused,
+            speed: options.speed,
+        }),
+        SourceSpec::Serial(_) => None,
+    }
+}
+
+/// A replay's or the twin's pace, as last asked for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pace {
+    /// Paused.
+    pub paused: bool,
+    /// Seconds of machine time per second of wall clock.
+    pub speed: ReplaySpeed,
+}
+
 /// How a source's time runs from one session to the next.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StateClock {
@@ -156,6 +181,13 @@ pub enum SessionCommand {
     },
     /// Switch the recorder on (new file) or off.
     SetRecording(bool),
+    /// Save the estimators' state now and say so on `done` (a session about to take up the
+    /// same state file waits for it).
+    SaveStateNow(std::sync::mpsc::SyncSender<()>),
+    /// Pause (true) or resume a replay or the twin (a controller runs on regardless).
+    SetPaused(bool),
+    /// Change a replay's or the twin's speed.
+    SetSpeed(ReplaySpeed),
     /// The operator measured the tool: spindle elongation counts from zero again.
     ResetToolCalibration,
     /// Keep this fingerprint as its axis's healthy-machine baseline.
@@ -216,6 +248,9 @@ pub struct Session {
     source: String,
     /// What the session was started with (the HMI opens another source on its settings).
     config: SessionConfig,
+    /// Why its profile's estimators do not run on this link (`None`: they run, or there is
+    /// no profile).
+    estimators_off: Option<String>,
     commands: mpsc::Sender<SessionCommand>,
     updates: mpsc::Receiver<SessionUpdate>,
     thread: Option<std::thread::JoinHandle<()>>,
@@ -323,8 +358,8 @@ impl Session {
             state_saved_at: Instant::now(),
             state_save_failed: false,
         };
-        if let Some(error) = pipeline_error {
-            worker.event(EventKind::Condition, Severity::Warning, error);
+        if let Some(error) = &pipeline_error {
+            worker.event(EventKind::Condition, Severity::Warning, error.clone());
         }
         if let Some(note) = state_note {
             worker.event(EventKind::Condition, Severity::Warning, note);
@@ -345,6 +380,7 @@ impl Session {
             schema,
             source,
             config,
+            estimators_off: pipeline_error,
             commands: command_tx,
             updates: update_rx,
             thread: Some(thread),
@@ -369,6 +405,15 @@ impl Session {
     /// What the session was started with.
     pub fn config(&self) -> &SessionConfig {
         &self.config
+    }
+
+    /// What runs on the frames: "the estimators of profile `…`", or why none do.
+    pub fn estimators(&self) -> String {
+        match (&self.config.profile, &self.estimators_off) {
+            (None, _) => "no estimators (no machine profile)".into(),
+            (Some(_), Some(why)) => format!("no estimators ({why})"),
+            (Some(profile), None) => format!("the estimators of profile `{}`", profile.name),
+        }
     }
 
     /// Queues a command; never waits.
@@ -740,7 +785,8 @@ impl Worker {
             self.event(
                 EventKind::Recorder,
                 Severity::Warning,
-                "no recording directory was given (--record-dir)",
+                "this session has no recording directory (--record-dir; a recording opened \
+                 from the Source window is not recorded again: it is on disk already)",
             );
             return;
         };
@@ -858,6 +904,14 @@ impl Worker {
                 self.send_audit();
                 self.send_users();
             }
+            SessionCommand::SaveStateNow(done) => {
+                self.save_state();
+                let _ = done.try_send(());
+            }
+            // The link applies these at once (a controller's link ignores them); the UI shows
+            // what it asked for.
+            SessionCommand::SetPaused(paused) => self.link.set_paused(paused),
+            SessionCommand::SetSpeed(speed) => self.link.set_speed(speed),
             SessionCommand::SetRecording(on) => {
                 if on && self.recorder.is_none() {
                     self.start_recording();
@@ -1146,16 +1200,19 @@ fn take_up_saved_state(
     }
 }
 
-/// Writes a saved state to a file beside `path` (named for this process, so two HMIs on one
-/// data directory do not write into each other's), makes it durable, and renames it over
-/// `path`: a power cut leaves the old state or the new one, never a part of either.
+/// Writes a saved state to a file beside `path` (named for this process and this write, so
+/// neither two HMIs on one data directory nor two sessions of one HMI write into each
+/// other's), makes it durable, and renames it over `path`: a power cut leaves the old state
+/// or the new one, never a part of either.
 fn write_state(path: &std::path::Path, saved: &SavedState) -> Result<(), String> {
     let at = |e: std::io::Error| format!("{}: {e}", path.display());
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(at)?;
     }
     let text = serde_json::to_string(saved).map_err(|e| e.to_string())? + "\n";
-    let partial = path.with_extension(format!("json.partial-{}", std::process::id()));
+    static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let write = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let partial = path.with_extension(format!("json.partial-{}-{write}", std::process::id()));
     let mut file = std::fs::File::create(&partial).map_err(at)?;
     std::io::Write::write_all(&mut file, text.as_bytes())
         .and_then(|()| file.sync_all())

@@ -17,7 +17,9 @@ use crate::discrepancy::{
     DiscrepancyError, DiscrepancyReport, Options, RowBudget, analyse_observed,
 };
 use crate::signal::channel::TIME;
-use crate::signal::{RecordingPieces, RecordingReader, later_pieces};
+#[cfg(doc)]
+use crate::signal::later_pieces;
+use crate::signal::{RecordingPieces, RecordingReader, with_later_pieces};
 
 /// What the Model lab asks the discrepancy analysis for.
 #[derive(Debug, Clone, PartialEq)]
@@ -69,22 +71,10 @@ impl DiscrepancyRequest {
     /// beside it. Lists a directory, so only on a job's thread.
     pub fn real_pieces(&self) -> Result<Vec<PathBuf>, String> {
         match self.real.first() {
-            Some(first) if self.find_later_pieces => real_pieces(first, true),
+            Some(first) if self.find_later_pieces => with_later_pieces(first, true),
             _ => Ok(self.real.clone()),
         }
     }
-}
-
-/// `first`, followed (given `find_later`) by the pieces the recorder continued it in that are
-/// beside it.
-pub(super) fn real_pieces(first: &Path, find_later: bool) -> Result<Vec<PathBuf>, String> {
-    let mut pieces = vec![first.to_path_buf()];
-    if find_later {
-        let later = later_pieces(first)
-            .map_err(|e| format!("cannot look for the pieces beside {}: {e}", first.display()))?;
-        pieces.extend(later);
-    }
-    Ok(pieces)
 }
 
 /// A finished analysis with its source.
@@ -321,7 +311,7 @@ pub fn read_shared_columns(
         .map(|reader| reader.schema().names().to_vec())
         .map_err(|e| JobStop::Failed(e.to_string()))?;
     context.check()?;
-    let real_pieces = real_pieces(&real, find_later_pieces).map_err(JobStop::Failed)?;
+    let real_pieces = with_later_pieces(&real, find_later_pieces).map_err(JobStop::Failed)?;
     let in_real = RecordingPieces::open(&real_pieces)
         .map(|pieces| pieces.schema().names().to_vec())
         .map_err(|e| JobStop::Failed(e.to_string()))?;

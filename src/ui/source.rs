@@ -1,16 +1,16 @@
 //! Opening another source in the running HMI: a recording chosen in the *Source* window, or
 //! the source the HMI was started on. The new session is started on a job's thread while the
 //! current one keeps running; the app swaps them only once the new one has started, so a
-//! mistyped path or a broken file leaves the machine on screen as it was.
+//! mistyped path or a broken file leaves the machine on screen as it was. A recording opened
+//! here is not recorded again.
 
 use std::path::PathBuf;
 
 use super::jobs::{JobContext, JobStop};
-use super::session::{Session, SessionConfig, SourceSpec};
-use super::sim_vs_real::real_pieces;
+use super::session::{Session, SessionConfig, SourceSpec, estimator_state_path};
 use crate::link::{ReplayOptions, ReplaySpeed};
 use crate::profile::MachineProfile;
-use crate::signal::RecordingPieces;
+use crate::signal::{RecordingPieces, with_later_pieces};
 
 /// Which machine profile the opened recording's estimators run with.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,19 +47,10 @@ pub fn parse_open_form(
     if recording.is_empty() {
         return Err("give the recording to open (a CSV v1 file)".into());
     }
-    let speed_text = speed.trim();
-    let speed = if speed_text.is_empty() {
+    let speed = if speed.trim().is_empty() {
         1.0
     } else {
-        match speed_text.parse::<f64>() {
-            Ok(s) if s.is_finite() && s > 0.0 => s,
-            _ => {
-                return Err(format!(
-                    "speed: `{speed_text}` is not a positive number (seconds of recording per \
-                     second; blank replays in real time)"
-                ));
-            }
-        }
+        parse_speed(speed)?
     };
     let profile = profile.trim();
     Ok(OpenRequest {
@@ -74,6 +65,20 @@ pub fn parse_open_form(
     })
 }
 
+/// A speed typed by the operator: seconds of recording per second of wall clock, a positive
+/// number; anything else is refused with a message that quotes it.
+pub fn parse_speed(text: &str) -> Result<f64, String> {
+    let text = text.trim();
+    // A decimal comma is read as a point, as the other number fields read it.
+    match text.replace(',', ".").parse::<f64>() {
+        Ok(s) if s.is_finite() && s > 0.0 => Ok(s),
+        _ => Err(format!(
+            "speed: `{text}` is not a positive number (seconds of recording per second of \
+             wall clock; 1 is real time)"
+        )),
+    }
+}
+
 /// What the app asks the job to start.
 #[derive(Debug, Clone)]
 pub enum SourceChange {
@@ -83,14 +88,34 @@ pub enum SourceChange {
     Return,
 }
 
+/// Everything the job needs besides the change itself.
+pub struct SwitchContext {
+    /// The running session's configuration (its users, audit log, limits and data directory
+    /// carry over to a recording).
+    pub running: SessionConfig,
+    /// The configuration the HMI was started on.
+    pub start: SessionConfig,
+    /// Earlier sessions still ending (joining their threads, finishing their recorder files):
+    /// waited for before the new one starts, so a serial port they hold is free again.
+    pub earlier_endings: Vec<std::thread::JoinHandle<()>>,
+    /// Says when the running session has saved its estimators' state: waited for (a little)
+    /// when the new session takes up the same state file, so that it carries on from where
+    /// the running one is rather than from its last periodic save.
+    pub running_saved: Option<std::sync::mpsc::Receiver<()>>,
+}
+
+/// How long the job waits for the running session to save its estimators' state.
+const SAVE_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// A started session and what the operator should be told about it.
 pub struct Switched {
     /// The new session, running.
     pub session: Session,
-    /// "replaying shift.csv … shift-0002.csv (3 pieces) at 60 × with the estimators of …".
+    /// "replaying shift.csv … shift-0002.csv (3 pieces) at 60 × real time with the
+    /// estimators of profile `…`".
     pub summary: String,
     /// Whether this session is the one the HMI was started on.
-    pub is_home: bool,
+    pub is_start: bool,
 }
 
 impl std::fmt::Debug for Switched {
@@ -98,58 +123,96 @@ impl std::fmt::Debug for Switched {
         f.debug_struct("Switched")
             .field("source", &self.session.source())
             .field("summary", &self.summary)
-            .field("is_home", &self.is_home)
+            .field("is_start", &self.is_start)
             .finish()
     }
 }
 
-/// The job: checks the recording (every piece's header) and the profile, then starts the new
-/// session. `running` is the current session's configuration (its recorder, users, audit log,
-/// limits and data directory carry over), `home` the one the HMI was started on.
+/// The job: checks the recording (every piece's header) and the profile, waits for earlier
+/// sessions to end, then starts the new session.
 pub fn run_switch(
     change: SourceChange,
-    running: SessionConfig,
-    home: SessionConfig,
+    inputs: SwitchContext,
     context: &JobContext<Switched>,
 ) -> Result<Switched, JobStop> {
-    let (config, summary, is_home) = match change {
-        SourceChange::Return => {
-            let summary = format!("back on {}", source_label(&home.source));
-            (home, summary, true)
-        }
+    let SwitchContext {
+        running,
+        start,
+        earlier_endings,
+        running_saved,
+    } = inputs;
+    // Waited for even when the job stops early, so no ending is left unjoined.
+    let mut earlier_endings = Endings(earlier_endings);
+    let (config, replayed) = match change {
+        SourceChange::Return => (start, None),
         SourceChange::Open(request) => {
-            let (config, summary) = replay_config(&request, running, context)?;
-            (config, summary, false)
+            let config = replay_config(&request, running.clone(), context)?;
+            (config, Some(request.speed))
         }
     };
     context.check()?;
+    context.progress("waiting for the previous source to close", Some(0.6));
+    earlier_endings.wait();
+    let same_state_file = estimator_state_path(&config.data_dir, &config.source)
+        .zip(estimator_state_path(&running.data_dir, &running.source))
+        .is_some_and(|((new, _), (old, _))| new == old);
+    if same_state_file && let Some(saved) = running_saved {
+        context.progress("saving the estimators' state", Some(0.7));
+        // A session that cannot save in time is carried on from its last periodic save.
+        let _ = saved.recv_timeout(SAVE_WAIT);
+    }
+    context.check()?;
     context.progress("starting the session", Some(0.8));
+    let is_start = replayed.is_none();
     let session = Session::start(config).map_err(|e| JobStop::Failed(e.to_string()))?;
+    let summary = match (replayed, &session.config().source) {
+        (Some(speed), SourceSpec::Replay { pieces, .. }) => format!(
+            "replaying {} at {speed} × real time with {}, not recorded again (it is on disk)",
+            RecordingPieces::short_name(pieces),
+            session.estimators()
+        ),
+        _ => format!("back on {} with {}", session.source(), session.estimators()),
+    };
     // A session started after a cancel is dropped here (its recorder file is finished).
     context.check()?;
     Ok(Switched {
         session,
         summary,
-        is_home,
+        is_start,
     })
 }
 
-/// The session configuration that replays `request`, and its one-line summary.
+/// Sessions ending on threads of their own, joined when waited for or dropped.
+struct Endings(Vec<std::thread::JoinHandle<()>>);
+
+impl Endings {
+    fn wait(&mut self) {
+        for ending in self.0.drain(..) {
+            let _ = ending.join();
+        }
+    }
+}
+
+impl Drop for Endings {
+    fn drop(&mut self) {
+        self.wait();
+    }
+}
+
+/// The session configuration that replays `request`.
 fn replay_config(
     request: &OpenRequest,
     running: SessionConfig,
     context: &JobContext<Switched>,
-) -> Result<(SessionConfig, String), JobStop> {
+) -> Result<SessionConfig, JobStop> {
     context.progress("looking for the recording's pieces", Some(0.1));
-    let pieces =
-        real_pieces(&request.recording, request.find_later_pieces).map_err(JobStop::Failed)?;
+    let pieces = with_later_pieces(&request.recording, request.find_later_pieces)
+        .map_err(JobStop::Failed)?;
     context.check()?;
     context.progress("reading the recording's headers", Some(0.3));
     // Every piece's header now, so a missing piece or one with other columns is refused
     // before the running source is let go (the link reads them again as it starts).
-    let schema = RecordingPieces::open(&pieces)
-        .map(|opened| opened.schema().clone())
-        .map_err(|e| JobStop::Failed(e.to_string()))?;
+    RecordingPieces::open(&pieces).map_err(|e| JobStop::Failed(e.to_string()))?;
     context.check()?;
     let profile = match &request.profile {
         ProfileChoice::Running => running.profile.clone(),
@@ -158,20 +221,7 @@ fn replay_config(
             Some(MachineProfile::load(path).map_err(|e| JobStop::Failed(e.to_string()))?)
         }
     };
-    let estimators = match &profile {
-        None => "no estimators (no machine profile)".to_string(),
-        Some(profile) => match crate::estimators::EstimatorPipeline::new(profile, &schema) {
-            Ok(_) => format!("the estimators of profile `{}`", profile.name),
-            // The session starts anyway and says so: the servo signals are worth seeing.
-            Err(error) => format!("no estimators (profile `{}`: {error})", profile.name),
-        },
-    };
-    let summary = format!(
-        "replaying {} at {} × real time with {estimators}",
-        RecordingPieces::short_name(&pieces),
-        request.speed
-    );
-    let config = SessionConfig {
+    Ok(SessionConfig {
         source: SourceSpec::Replay {
             pieces,
             options: ReplayOptions {
@@ -180,20 +230,11 @@ fn replay_config(
             },
         },
         profile,
+        // A recording is on disk already: recording its replay would only copy it, into the
+        // machine's recordings, under the names the machine's own recordings take.
+        record_dir: None,
         ..running
-    };
-    Ok((config, summary))
-}
-
-/// How a source is named to the operator before its link names it.
-pub fn source_label(source: &SourceSpec) -> String {
-    match source {
-        SourceSpec::Twin { .. } => "the embedded twin".into(),
-        SourceSpec::Replay { pieces, .. } => {
-            format!("the recording {}", RecordingPieces::short_name(pieces))
-        }
-        SourceSpec::Serial(modbus) => format!("the controller on {}", modbus.port),
-    }
+    })
 }
 
 #[cfg(test)]
@@ -212,6 +253,9 @@ mod tests {
         assert_eq!(request.speed, 60.0);
         assert_eq!(request.profile, ProfileChoice::File("p.toml".into()));
         assert!(parse_open_form("  ", false, "", "").is_err());
+        assert_eq!(parse_speed(" 0.5 "), Ok(0.5));
+        assert_eq!(parse_speed("1,5"), Ok(1.5));
+        assert!(parse_speed("").is_err());
         for bad in ["0", "-2", "fast", "inf", "NaN"] {
             let error = parse_open_form("a.csv", false, bad, "").expect_err(bad);
             assert!(error.contains(&format!("`{bad}`")), "{error}");

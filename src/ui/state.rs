@@ -542,23 +542,39 @@ pub struct HmiState {
     pub source: SourceState,
 }
 
-/// The *Source* window's state: kept when the source changes, like the events.
+/// The *Source* window's state: kept when the source changes, like the events (but for
+/// what describes the running source, which is set anew).
 #[derive(Debug, Clone, Default)]
 pub struct SourceState {
-    /// What is being opened and how far it is.
-    pub running: Option<(String, JobProgress)>,
+    /// The change being made and how far it is.
+    pub running: Option<SourceChangeProgress>,
     /// Why the last change failed or stopped (the running source stayed).
     pub error: Option<String>,
     /// The source the HMI was started on, while another one runs (`None`: on it).
-    pub start_source: Option<String>,
+    pub start_source_label: Option<String>,
     /// The last change, as told in the events.
     pub last_change: Option<String>,
+    /// The running replay's or twin's pace (`None` on a controller).
+    pub pace: Option<super::session::Pace>,
+    /// The running controller, when the source is one (leaving it stops watching the
+    /// machine, so the operator confirms it).
+    pub controller: Option<String>,
+}
+
+/// A source change on its way.
+#[derive(Debug, Clone)]
+pub struct SourceChangeProgress {
+    /// "opening shift.csv".
+    pub what: String,
+    /// Its stage.
+    pub progress: JobProgress,
 }
 
 impl HmiState {
     /// Why the source may not be changed now (`None`: it may). A push waiting for its
     /// approver or being written belongs to the running controller: it is finished or
-    /// withdrawn first, so no approval ever meets another source.
+    /// withdrawn first, so no approval ever meets another source. A signed-off warm-up
+    /// report being written is waited for, so its confirmation is not lost.
     pub fn source_change_refused(&self) -> Option<String> {
         match &self.compensation.flow {
             PushFlow::AwaitingApproval { request, .. } => Some(format!(
@@ -569,6 +585,9 @@ impl HmiState {
                 "request {} is being written to the controller: wait for its read-back",
                 request.id()
             )),
+            PushFlow::Idle | PushFlow::Finished(_) if self.warmup.saving => {
+                Some("the warm-up report is being saved: wait for it (Warm-up)".into())
+            }
             PushFlow::Idle | PushFlow::Finished(_) => None,
         }
     }

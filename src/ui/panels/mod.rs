@@ -143,6 +143,10 @@ pub enum UiCommand {
     ReturnToStartSource,
     /// Stop opening a source (the running one stays).
     CancelSourceChange,
+    /// Pause (true) or resume the running replay or twin.
+    SetPaused(bool),
+    /// Run the replay or twin at the speed in the *Source* window's form.
+    SetSpeed,
 }
 
 /// The Model lab's sections.
@@ -221,6 +225,12 @@ pub struct Forms {
     /// Whether the *Source* window is shown.
     #[serde(skip)]
     pub source_window: bool,
+    /// The speed the running replay or twin is to run at, × real time.
+    #[serde(skip)]
+    pub running_speed: String,
+    /// The operator confirmed that opening a recording stops monitoring the controller.
+    #[serde(skip)]
+    pub open_leave_controller: bool,
 }
 
 /// `plot` with its value axis on steps of 1, 2 and 5 × 10ⁿ, labelled with as many decimals

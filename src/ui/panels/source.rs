@@ -23,6 +23,28 @@ pub fn source_ui(
             if let Some(change) = &view.last_change {
                 ui.small(change);
             }
+            if let Some(pace) = &view.pace {
+                ui.horizontal(|ui| {
+                    let (label, paused) = if pace.paused {
+                        ("Resume", false)
+                    } else {
+                        ("Pause", true)
+                    };
+                    if ui.button(label).clicked() {
+                        commands.push(UiCommand::SetPaused(paused));
+                    }
+                    labelled_text(
+                        ui,
+                        "Running speed (× real time)",
+                        &mut forms.running_speed,
+                        70.0,
+                    );
+                    if ui.button("Set speed").clicked() {
+                        commands.push(UiCommand::SetSpeed);
+                    }
+                    ui.small(format!("now {}", pace.text));
+                });
+            }
             ui.separator();
             ui.strong("Open a recording");
             ui.label(
@@ -48,6 +70,16 @@ pub fn source_ui(
                     ui.small(&view.profile_hint);
                     ui.end_row();
                 });
+            if let Some(warning) = &view.leaves_controller {
+                ui.colored_label(
+                    super::severity_color(crate::ui::state::Severity::Warning),
+                    warning,
+                );
+                ui.checkbox(
+                    &mut forms.open_leave_controller,
+                    "stop monitoring the controller",
+                );
+            }
             match &view.refused {
                 Some(reason) => {
                     ui.add_enabled(false, egui::Button::new("Open"));

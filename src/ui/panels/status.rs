@@ -27,6 +27,13 @@ pub fn status_ui(ui: &mut egui::Ui, view: &StatusView, commands: &mut Vec<UiComm
         }
         ui.separator();
         ui.label(&view.machine_time);
+        if let Some(away) = &view.away_from_start {
+            ui.separator();
+            ui.colored_label(
+                super::severity_color(crate::ui::state::Severity::Warning),
+                away,
+            );
+        }
         if let Some(missed) = &view.frames_not_shown {
             ui.separator();
             ui.colored_label(

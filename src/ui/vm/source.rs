@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use crate::link::ConnectionState;
+use crate::link::{ConnectionState, ReplaySpeed};
 use crate::ui::state::{HmiState, JobProgress};
 
 /// What the *Source* window shows.
@@ -19,10 +19,23 @@ pub struct SourceView {
     pub running: Option<JobProgress>,
     /// Why the last change failed or stopped.
     pub error: Option<String>,
-    /// "Back to the embedded twin", while another source runs.
+    /// "Back to the start source (embedded twin)", while another source runs.
     pub return_label: Option<String>,
+    /// On a controller: what opening a recording stops (the operator ticks that they know).
+    pub leaves_controller: Option<String>,
     /// The last change.
     pub last_change: Option<String>,
+    /// The running replay's or twin's pace (`None`: a controller, which runs at its own).
+    pub pace: Option<PaceView>,
+}
+
+/// How the running replay or twin is paced.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PaceView {
+    /// Paused.
+    pub paused: bool,
+    /// "60 × real time, paused".
+    pub text: String,
 }
 
 /// Builds the *Source* window.
@@ -40,20 +53,36 @@ pub fn build(state: &HmiState) -> SourceView {
         current: format!("{} — {link_state}", state.link.source),
         profile_hint,
         refused: state.source_change_refused(),
-        running: state
-            .source
-            .running
-            .as_ref()
-            .map(|(what, progress)| JobProgress {
-                stage: format!("{what}: {}", progress.stage),
-                fraction: progress.fraction,
-            }),
+        running: state.source.running.as_ref().map(|change| JobProgress {
+            stage: format!("{}: {}", change.what, change.progress.stage),
+            fraction: change.progress.fraction,
+        }),
         error: state.source.error.clone(),
         return_label: state
             .source
-            .start_source
+            .start_source_label
             .as_ref()
-            .map(|source| format!("Back to {source}")),
+            .map(|source| format!("Back to the start source ({source})")),
+        leaves_controller: state.source.controller.as_ref().map(|controller| {
+            format!(
+                "opening a recording stops monitoring the controller ({controller}): it is \
+                 neither watched nor recorded until you come back to it here"
+            )
+        }),
         last_change: state.source.last_change.clone(),
+        pace: state.source.pace.map(|pace| {
+            let speed = match pace.speed {
+                ReplaySpeed::Factor(factor) => format!("{factor} × real time"),
+                ReplaySpeed::AsFastAsPossible => "as fast as the frames are taken".into(),
+            };
+            PaceView {
+                paused: pace.paused,
+                text: if pace.paused {
+                    format!("{speed}, paused")
+                } else {
+                    speed
+                },
+            }
+        }),
     }
 }

@@ -27,6 +27,9 @@ pub struct StatusView {
     pub machine_time: String,
     /// Frames the screen missed (they are on disk), when any.
     pub frames_not_shown: Option<String>,
+    /// While a source opened from the *Source* window runs: that the start source is not
+    /// (a machine left this way is neither watched nor recorded).
+    pub away_from_start: Option<String>,
 }
 
 /// Builds the status bar.
@@ -99,5 +102,10 @@ pub fn build(state: &HmiState) -> StatusView {
                 state.frames_not_shown
             )
         }),
+        away_from_start: state
+            .source
+            .start_source_label
+            .as_ref()
+            .map(|start| format!("{start} is not running: Source… goes back to it")),
     }
 }
