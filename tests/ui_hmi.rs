@@ -1424,9 +1424,29 @@ fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
             .trends
             .selected
             .iter()
-            .all(|n| app.state.latest.names.contains(n))
+            .any(|n| app.state.latest.names.contains(n)),
+        "the Trends panel draws the recording's columns"
     );
-    // The whole recording is replayed across its pieces (3600 s at 600 ×: 6 s).
+    // Paused, the replay stops where it is; resumed at twice the speed it goes on.
+    click(h, "Pause");
+    std::thread::sleep(Duration::from_millis(300));
+    settle(h);
+    let held = h.state().state.latest.time_s();
+    for _ in 0..10 {
+        std::thread::sleep(Duration::from_millis(50));
+        h.step();
+    }
+    assert_eq!(
+        h.state().state.latest.time_s(),
+        held,
+        "a paused replay sends nothing"
+    );
+    assert!(shows(h, "600 × real time, paused"));
+    type_into(h, "Running speed (× real time)", "1200");
+    click(h, "Set speed");
+    click(h, "Resume");
+    assert!(shows(h, "now 1200 × real time"));
+    // The whole recording is replayed across its pieces (3600 s at 1200 ×: 3 s).
     step_until_within(h, "the last piece's rows", 40, |app| {
         app.state
             .latest
