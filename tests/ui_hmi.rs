@@ -270,11 +270,10 @@ fn approval_refuses_a_wrong_credential_and_writes_with_the_right_one() {
     );
 }
 
-#[test]
-fn cancelling_the_dialog_writes_nothing_and_is_audited() {
-    let mut f = start();
-    let h = &mut f.harness;
-    step_until(h, "live data", |app| {
+/// Once the controller's table and the users are read, otto requests backlash.X = 2.5 µm:
+/// the request then waits for its approver.
+fn request_a_push_of_backlash_x(h: &mut Harness<'static, HmiApp>) {
+    step_until(h, "the controller's table and the users", |app| {
         app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
     });
     click(h, "Compensation");
@@ -283,6 +282,17 @@ fn cancelling_the_dialog_writes_nothing_and_is_audited() {
     type_into(h, "Why", "test");
     type_into(h, "Operator", "otto");
     click(h, "Request push");
+    assert!(matches!(
+        h.state().state.compensation.flow,
+        PushFlow::AwaitingApproval { .. }
+    ));
+}
+
+#[test]
+fn cancelling_the_dialog_writes_nothing_and_is_audited() {
+    let mut f = start();
+    let h = &mut f.harness;
+    request_a_push_of_backlash_x(h);
     click(h, "Cancel request");
     assert!(matches!(h.state().state.compensation.flow, PushFlow::Idle));
     h.get_by_label("Refresh").click();
@@ -1484,15 +1494,7 @@ fn a_push_waiting_for_its_approver_keeps_the_source() {
     let mut f = start();
     let pieces = hour_in_pieces(f._dir.path());
     let h = &mut f.harness;
-    step_until(h, "users", |app| {
-        app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
-    });
-    click(h, "Compensation");
-    type_into(h, "New value [µm]", "2.5");
-    click(h, "Add change");
-    type_into(h, "Why", "test");
-    type_into(h, "Operator", "otto");
-    click(h, "Request push");
+    request_a_push_of_backlash_x(h);
     let twin_source = h.state().state.link.source.clone();
     h.state_mut().settings.forms.open_recording = pieces[0].display().to_string();
     h.state_mut().execute(UiCommand::OpenRecording);
