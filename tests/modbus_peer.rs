@@ -28,7 +28,7 @@ use servosight::signal::{AxisId, Quantity, axis_column, read_recording};
 const INSTALL: &str = "apt-get install -y socat && pip install 'pymodbus==3.*' pyserial";
 
 /// Fails the test (never skips it) when the peer's tools are missing.
-fn require_tools() {
+pub(crate) fn require_tools() {
     let socat = Command::new("socat").arg("-V").output();
     assert!(
         socat.is_ok_and(|o| o.status.success()),
@@ -47,7 +47,7 @@ fn require_tools() {
 }
 
 /// A child process killed (by its own pid) when dropped.
-struct Process(Child);
+pub(crate) struct Process(Child);
 
 impl Process {
     fn kill(&mut self) {
@@ -63,13 +63,13 @@ impl Drop for Process {
 }
 
 /// `socat pty,link=A pty,link=B`: two tty ends joined, at stable paths.
-struct PtyPair {
+pub(crate) struct PtyPair {
     _socat: Process,
-    a: PathBuf,
-    b: PathBuf,
+    pub(crate) a: PathBuf,
+    pub(crate) b: PathBuf,
 }
 
-fn pty_pair(dir: &Path, name: &str) -> PtyPair {
+pub(crate) fn pty_pair(dir: &Path, name: &str) -> PtyPair {
     let a = dir.join(format!("{name}-a"));
     let b = dir.join(format!("{name}-b"));
     let child = Command::new("socat")
@@ -99,7 +99,7 @@ fn pty_pair(dir: &Path, name: &str) -> PtyPair {
 
 /// Options of the pymodbus peer.
 #[derive(Default)]
-struct PeerOptions {
+pub(crate) struct PeerOptions {
     no_echo: bool,
     sequence_start: Option<u32>,
     /// A raw word for the depth-of-cut register instead of the peer's alternating cut.
@@ -121,7 +121,7 @@ fn map_json(dir: &Path, map: Option<&serde_json::Value>) -> PathBuf {
     path
 }
 
-fn start_peer(dir: &Path, port: &Path, options: &PeerOptions) -> Process {
+pub(crate) fn start_peer(dir: &Path, port: &Path, options: &PeerOptions) -> Process {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/peers/modbus_peer.py");
     let mut command = Command::new("python3");
     command

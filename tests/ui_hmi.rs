@@ -1523,3 +1523,68 @@ fn a_push_waiting_for_its_approver_keeps_the_source() {
     });
     assert_ne!(h.state().state.link.source, twin_source);
 }
+
+/// The Source window connects to a controller: pymodbus on one end of a socat pty pair (the
+/// peer of tests/modbus_peer.rs), the HMI's link on the other. A device that is not there is
+/// refused with its name and the twin runs on; on the controller its frames arrive, its
+/// compensation table is read and it is recorded; leaving it takes the operator's tick.
+#[test]
+fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
+    crate::modbus_peer::require_tools();
+    let mut f = start();
+    let dir = f._dir.path().to_path_buf();
+    let pair = crate::modbus_peer::pty_pair(&dir, "line");
+    let _peer = crate::modbus_peer::start_peer(&dir, &pair.b, &Default::default());
+    let h = &mut f.harness;
+    step_until(h, "the twin's frames", |app| app.state.link.frames > 10);
+    let twin_source = h.state().state.link.source.clone();
+    assert_eq!(recordings_in(&f.record_dir), 1, "the twin is recorded");
+
+    click(h, "Source…");
+    let missing = dir.join("no-such-tty");
+    type_into(h, "Serial device", missing.to_str().expect("utf-8 path"));
+    click(h, "Connect");
+    step_until(h, "the refusal", |app| app.state.source.error.is_some());
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("no-such-tty"), "{error}");
+    assert_eq!(h.state().state.link.source, twin_source);
+
+    h.state_mut().settings.forms.connect_device = pair.a.display().to_string();
+    click(h, "Connect");
+    step_until(h, "the controller's frames and table", |app| {
+        app.state.source.controller.is_some()
+            && app.state.link.state == ConnectionState::Connected
+            && app.state.compensation.controller.is_some()
+    });
+    let app = h.state();
+    assert!(
+        app.state.link.source.contains("line-a"),
+        "{}",
+        app.state.link.source
+    );
+    let change = app.state.source.last_change.clone().unwrap_or_default();
+    assert!(
+        change.contains("connected to") && change.contains("recorded into"),
+        "{change}"
+    );
+    assert!(
+        app.state.source.pace.is_none(),
+        "a controller runs at its own pace"
+    );
+    step_until(h, "the controller's recording", |_| {
+        recordings_in(&f.record_dir) == 2
+    });
+
+    click(h, "Back to the start source (embedded twin)");
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("stop monitoring the controller"), "{error}");
+    assert!(
+        h.state().state.source.running.is_none(),
+        "nothing was started"
+    );
+    click(h, "stop monitoring the controller");
+    click(h, "Back to the start source (embedded twin)");
+    step_until(h, "the twin again", |app| {
+        app.state.link.source == twin_source && app.state.source.controller.is_none()
+    });
+}

@@ -17,7 +17,8 @@ use super::sim_vs_real::{
     read_shared_columns, run_discrepancy, run_save_report,
 };
 use super::source::{
-    SourceChange, SwitchContext, Switched, parse_open_form, parse_speed, run_switch,
+    ProfileChoice, SourceChange, SwitchContext, Switched, parse_connect_form, parse_open_form,
+    parse_speed, run_switch,
 };
 use super::state::{
     CompensationState, Event, EventKind, HmiState, JobProgress, LinkSnapshot, PushFlow, Severity,
@@ -417,6 +418,7 @@ impl HmiApp {
         }
         let what = match &change {
             SourceChange::Open(request) => format!("opening {}", request.recording.display()),
+            SourceChange::Connect { modbus, .. } => format!("connecting to {}", modbus.port),
             SourceChange::Return => format!("going back to {}", self.start_label),
         };
         // Asked now, so the state is saved from where the running session is; the job waits
@@ -449,6 +451,22 @@ impl HmiApp {
                 self.state.source.error = Some(format!("cannot start {what}: {error}"));
             }
         }
+    }
+
+    /// Whether the running source is a controller the operator has not agreed to stop
+    /// monitoring (and says so: the change waits for the tick).
+    fn leaving_controller_unconfirmed(&mut self) -> bool {
+        let Some(controller) = &self.state.source.controller else {
+            return false;
+        };
+        if self.settings.forms.open_leave_controller {
+            return false;
+        }
+        self.state.source.error = Some(format!(
+            "tick “stop monitoring the controller” first: once the other source runs, \
+             {controller} is neither watched nor recorded"
+        ));
+        true
     }
 
     /// Stops opening a source: the job is asked to stop (a session it starts after this is
@@ -1238,17 +1256,25 @@ impl HmiApp {
             UiCommand::ToggleSourceWindow => {
                 self.settings.forms.source_window = !self.settings.forms.source_window;
             }
+            UiCommand::OpenRecording | UiCommand::ConnectController
+                if self.leaving_controller_unconfirmed() => {}
+            UiCommand::ConnectController => {
+                let forms = &self.settings.forms;
+                match parse_connect_form(
+                    &forms.connect_device,
+                    &forms.connect_baud,
+                    &forms.connect_parity,
+                    &forms.connect_slave,
+                ) {
+                    Ok(modbus) => {
+                        let profile = ProfileChoice::from_field(&forms.open_profile);
+                        self.start_switch(SourceChange::Connect { modbus, profile });
+                    }
+                    Err(reason) => self.state.source.error = Some(reason),
+                }
+            }
             UiCommand::OpenRecording => {
                 let forms = &self.settings.forms;
-                if let Some(controller) = &self.state.source.controller
-                    && !forms.open_leave_controller
-                {
-                    self.state.source.error = Some(format!(
-                        "tick “stop monitoring the controller” first: while the recording \
-                         runs, {controller} is neither watched nor recorded"
-                    ));
-                    return;
-                }
                 match parse_open_form(
                     &forms.open_recording,
                     forms.open_this_file_only,
@@ -1259,7 +1285,11 @@ impl HmiApp {
                     Err(reason) => self.state.source.error = Some(reason),
                 }
             }
-            UiCommand::ReturnToStartSource => self.start_switch(SourceChange::Return),
+            UiCommand::ReturnToStartSource => {
+                if !self.leaving_controller_unconfirmed() {
+                    self.start_switch(SourceChange::Return);
+                }
+            }
             UiCommand::CancelSourceChange => self.cancel_switch(),
             UiCommand::SetPaused(paused) => {
                 if let Some(pace) = self.state.source.pace.as_mut() {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use super::jobs::{JobContext, JobStop};
 use super::session::{Session, SessionConfig, SourceSpec, estimator_state_path};
-use crate::link::{ReplayOptions, ReplaySpeed};
+use crate::link::{ModbusConfig, Parity, ReplayOptions, ReplaySpeed};
 use crate::profile::MachineProfile;
 use crate::signal::{RecordingPieces, with_later_pieces};
 
@@ -19,6 +19,16 @@ pub enum ProfileChoice {
     Running,
     /// A profile file (TOML), loaded and validated on the job's thread.
     File(PathBuf),
+}
+
+impl ProfileChoice {
+    /// The *Source* window's profile field: blank is the running session's profile.
+    pub fn from_field(text: &str) -> ProfileChoice {
+        match text.trim() {
+            "" => ProfileChoice::Running,
+            path => ProfileChoice::File(PathBuf::from(path)),
+        }
+    }
 }
 
 /// What the *Source* window asks for.
@@ -52,16 +62,11 @@ pub fn parse_open_form(
     } else {
         parse_speed(speed)?
     };
-    let profile = profile.trim();
     Ok(OpenRequest {
         recording: PathBuf::from(recording),
         find_later_pieces: !this_file_only,
         speed,
-        profile: if profile.is_empty() {
-            ProfileChoice::Running
-        } else {
-            ProfileChoice::File(PathBuf::from(profile))
-        },
+        profile: ProfileChoice::from_field(profile),
     })
 }
 
@@ -79,11 +84,55 @@ pub fn parse_speed(text: &str) -> Result<f64, String> {
     }
 }
 
+/// The *Source* window's controller form as the link's settings (polling and timeouts as
+/// `servosight --port` takes them by default); anything it cannot use is refused with a
+/// message that quotes it. Blank fields take the defaults: 115200 baud, no parity, slave 1.
+pub fn parse_connect_form(
+    device: &str,
+    baud: &str,
+    parity: &str,
+    slave: &str,
+) -> Result<ModbusConfig, String> {
+    let device = device.trim();
+    if device.is_empty() {
+        return Err("give the controller's serial device (e.g. /dev/ttyUSB0)".into());
+    }
+    let mut config = ModbusConfig::new(device);
+    let baud = baud.trim();
+    if !baud.is_empty() {
+        config.baud = baud
+            .parse::<u32>()
+            .ok()
+            .filter(|b| *b > 0)
+            .ok_or_else(|| format!("baud: `{baud}` is not a positive whole number"))?;
+    }
+    let parity = parity.trim();
+    if !parity.is_empty() {
+        config.parity = parity.parse::<Parity>()?;
+    }
+    let slave = slave.trim();
+    if !slave.is_empty() {
+        config.slave = slave
+            .parse::<u8>()
+            .ok()
+            .filter(|id| (1..=247).contains(id))
+            .ok_or_else(|| format!("slave id: `{slave}` is not a Modbus slave id (1 to 247)"))?;
+    }
+    Ok(config)
+}
+
 /// What the app asks the job to start.
 #[derive(Debug, Clone)]
 pub enum SourceChange {
     /// A recording from the *Source* window, on the running session's other settings.
     Open(OpenRequest),
+    /// A controller from the *Source* window, with the estimators of `profile`.
+    Connect {
+        /// The serial line and the controller on it.
+        modbus: ModbusConfig,
+        /// The estimators' profile.
+        profile: ProfileChoice,
+    },
     /// Back to the source the HMI was started on.
     Return,
 }
@@ -143,11 +192,27 @@ pub fn run_switch(
     } = inputs;
     // Waited for even when the job stops early, so no ending is left unjoined.
     let mut earlier_endings = Endings(earlier_endings);
-    let (config, replayed) = match change {
-        SourceChange::Return => (start, None),
+    let recorded_into = start.record_dir.clone();
+    let (config, kind) = match change {
+        SourceChange::Return => (start, Kind::Start),
         SourceChange::Open(request) => {
             let config = replay_config(&request, running.clone(), context)?;
-            (config, Some(request.speed))
+            (config, Kind::Replay(request.speed))
+        }
+        SourceChange::Connect { modbus, profile } => {
+            // A device that is not there is refused now; one that is there but silent is
+            // shown as the link sees it (disconnected, retrying), as at start.
+            std::fs::metadata(&modbus.port).map_err(|e| {
+                JobStop::Failed(format!("no serial device at {}: {e}", modbus.port))
+            })?;
+            let config = SessionConfig {
+                source: SourceSpec::Serial(modbus),
+                profile: chosen_profile(&profile, &running, context)?,
+                // A machine is recorded as the HMI was started to record.
+                record_dir: recorded_into.clone(),
+                ..running.clone()
+            };
+            (config, Kind::Controller)
         }
     };
     context.check()?;
@@ -163,16 +228,25 @@ pub fn run_switch(
     }
     context.check()?;
     context.progress("starting the session", Some(0.8));
-    let is_start = replayed.is_none();
     let session = Session::start(config).map_err(|e| JobStop::Failed(e.to_string()))?;
-    let summary = match (replayed, &session.config().source) {
-        (Some(speed), SourceSpec::Replay { pieces, .. }) => format!(
-            "replaying {} at {speed} × real time with {}, not recorded again (it is on disk)",
+    let estimators = session.estimators();
+    let summary = match (kind, &session.config().source) {
+        (Kind::Replay(speed), SourceSpec::Replay { pieces, .. }) => format!(
+            "replaying {} at {speed} × real time with {estimators}, not recorded again (it is \
+             on disk)",
             RecordingPieces::short_name(pieces),
-            session.estimators()
         ),
-        _ => format!("back on {} with {}", session.source(), session.estimators()),
+        (Kind::Controller, _) => format!(
+            "connected to {} with {estimators}, {}",
+            session.source(),
+            match &session.config().record_dir {
+                Some(dir) => format!("recorded into {}", dir.display()),
+                None => "not recorded (the HMI was started with the recorder off)".into(),
+            }
+        ),
+        _ => format!("back on {} with {estimators}", session.source()),
     };
+    let is_start = matches!(kind, Kind::Start);
     // A session started after a cancel is dropped here (its recorder file is finished).
     context.check()?;
     Ok(Switched {
@@ -180,6 +254,34 @@ pub fn run_switch(
         summary,
         is_start,
     })
+}
+
+/// What a change starts, for its summary.
+#[derive(Clone, Copy)]
+enum Kind {
+    /// The source the HMI was started on.
+    Start,
+    /// A recording, at this speed.
+    Replay(f64),
+    /// A controller.
+    Controller,
+}
+
+/// The profile `choice` names: the running session's, or one loaded from its file.
+fn chosen_profile(
+    choice: &ProfileChoice,
+    running: &SessionConfig,
+    context: &JobContext<Switched>,
+) -> Result<Option<MachineProfile>, JobStop> {
+    match choice {
+        ProfileChoice::Running => Ok(running.profile.clone()),
+        ProfileChoice::File(path) => {
+            context.progress("loading the machine profile", Some(0.5));
+            MachineProfile::load(path)
+                .map(Some)
+                .map_err(|e| JobStop::Failed(e.to_string()))
+        }
+    }
 }
 
 /// Sessions ending on threads of their own, joined when waited for or dropped.
@@ -214,13 +316,7 @@ fn replay_config(
     // before the running source is let go (the link reads them again as it starts).
     RecordingPieces::open(&pieces).map_err(|e| JobStop::Failed(e.to_string()))?;
     context.check()?;
-    let profile = match &request.profile {
-        ProfileChoice::Running => running.profile.clone(),
-        ProfileChoice::File(path) => {
-            context.progress("loading the machine profile", Some(0.5));
-            Some(MachineProfile::load(path).map_err(|e| JobStop::Failed(e.to_string()))?)
-        }
-    };
+    let profile = chosen_profile(&request.profile, &running, context)?;
     Ok(SessionConfig {
         source: SourceSpec::Replay {
             pieces,
@@ -256,6 +352,28 @@ mod tests {
         assert_eq!(parse_speed(" 0.5 "), Ok(0.5));
         assert_eq!(parse_speed("1,5"), Ok(1.5));
         assert!(parse_speed("").is_err());
+    }
+
+    #[test]
+    fn the_controller_form_takes_defaults_or_refuses_with_what_was_typed() {
+        let config = parse_connect_form(" /dev/ttyUSB0 ", "", "", "").expect("valid");
+        assert_eq!(config, ModbusConfig::new("/dev/ttyUSB0"));
+        let config = parse_connect_form("/dev/ttyS1", "19200", "even", "7").expect("valid");
+        assert_eq!(
+            (config.baud, config.parity, config.slave),
+            (19200, Parity::Even, 7)
+        );
+        assert!(parse_connect_form(" ", "", "", "").is_err());
+        for (baud, parity, slave, quoted) in [
+            ("0", "", "", "`0`"),
+            ("fast", "", "", "`fast`"),
+            ("", "mark", "", "`mark`"),
+            ("", "", "248", "`248`"),
+            ("", "", "0", "`0`"),
+        ] {
+            let error = parse_connect_form("/dev/ttyS1", baud, parity, slave).expect_err(quoted);
+            assert!(error.contains(quoted), "{error}");
+        }
         for bad in ["0", "-2", "fast", "inf", "NaN"] {
             let error = parse_open_form("a.csv", false, bad, "").expect_err(bad);
             assert!(error.contains(&format!("`{bad}`")), "{error}");

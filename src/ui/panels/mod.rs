@@ -139,6 +139,8 @@ pub enum UiCommand {
     ToggleSourceWindow,
     /// Open the recording in the *Source* window's form in place of the running source.
     OpenRecording,
+    /// Connect to the controller in the *Source* window's form in place of the running source.
+    ConnectController,
     /// Go back to the source the HMI was started on.
     ReturnToStartSource,
     /// Stop opening a source (the running one stays).
@@ -220,8 +222,17 @@ pub struct Forms {
     pub open_this_file_only: bool,
     /// Its replay speed, × real time (blank: real time).
     pub open_speed: String,
-    /// The machine profile its estimators run with (blank: the running session's).
+    /// The machine profile a recording's or controller's estimators run with (blank: the
+    /// running session's).
     pub open_profile: String,
+    /// The serial device of a controller to connect to.
+    pub connect_device: String,
+    /// Its baud rate (blank: 115200).
+    pub connect_baud: String,
+    /// Its parity: none, even or odd (blank: none).
+    pub connect_parity: String,
+    /// Its Modbus slave id (blank: 1).
+    pub connect_slave: String,
     /// Whether the *Source* window is shown.
     #[serde(skip)]
     pub source_window: bool,

@@ -46,24 +46,14 @@ pub fn source_ui(
                 });
             }
             ui.separator();
-            ui.strong("Open a recording");
             ui.label(
-                "It is replayed in place of the running source, on the same recorder, users \
-                 and audit log; the checklist, the trends and the depth of cut start afresh \
-                 on it. The pieces the recorder continued it in (NAME-0001.csv, … beside it) \
-                 follow it.",
+                "Another source runs in place of this one, on the same users and audit log; \
+                 the readings, trends, checklist and depth of cut start afresh on it.",
             );
-            egui::Grid::new("open recording form")
+            egui::Grid::new("source profile")
                 .num_columns(2)
                 .spacing([8.0, 6.0])
                 .show(ui, |ui| {
-                    labelled_text(ui, "Recording (CSV)", &mut forms.open_recording, 380.0);
-                    ui.end_row();
-                    ui.label("");
-                    ui.checkbox(&mut forms.open_this_file_only, "this file only");
-                    ui.end_row();
-                    labelled_text(ui, "Speed (× real time)", &mut forms.open_speed, 80.0);
-                    ui.end_row();
                     labelled_text(ui, "Machine profile (TOML)", &mut forms.open_profile, 380.0);
                     ui.end_row();
                     ui.label("");
@@ -80,21 +70,57 @@ pub fn source_ui(
                     "stop monitoring the controller",
                 );
             }
-            match &view.refused {
-                Some(reason) => {
-                    ui.add_enabled(false, egui::Button::new("Open"));
-                    ui.colored_label(
-                        super::severity_color(crate::ui::state::Severity::Warning),
-                        reason,
-                    );
-                }
-                None => job_row(
+            if let Some(reason) = &view.refused {
+                ui.colored_label(
+                    super::severity_color(crate::ui::state::Severity::Warning),
+                    reason,
+                );
+            }
+            ui.add_space(4.0);
+            ui.strong("A recording");
+            ui.small(
+                "The pieces the recorder continued it in (NAME-0001.csv, … beside it) follow \
+                 it. It is not recorded again.",
+            );
+            egui::Grid::new("open recording form")
+                .num_columns(2)
+                .spacing([8.0, 6.0])
+                .show(ui, |ui| {
+                    labelled_text(ui, "Recording (CSV)", &mut forms.open_recording, 380.0);
+                    ui.end_row();
+                    ui.label("");
+                    ui.checkbox(&mut forms.open_this_file_only, "this file only");
+                    ui.end_row();
+                    labelled_text(ui, "Speed (× real time)", &mut forms.open_speed, 80.0);
+                    ui.end_row();
+                });
+            change_button(ui, view, "Open", UiCommand::OpenRecording, commands);
+            ui.add_space(4.0);
+            ui.strong("A controller (Modbus RTU)");
+            ui.small("Recorded as the HMI was started to record. Blank: 115200 baud, no parity, slave 1.");
+            egui::Grid::new("connect controller form")
+                .num_columns(2)
+                .spacing([8.0, 6.0])
+                .show(ui, |ui| {
+                    labelled_text(ui, "Serial device", &mut forms.connect_device, 240.0);
+                    ui.end_row();
+                    labelled_text(ui, "Baud", &mut forms.connect_baud, 80.0);
+                    ui.end_row();
+                    labelled_text(ui, "Parity (none, even, odd)", &mut forms.connect_parity, 80.0);
+                    ui.end_row();
+                    labelled_text(ui, "Slave id", &mut forms.connect_slave, 80.0);
+                    ui.end_row();
+                });
+            change_button(ui, view, "Connect", UiCommand::ConnectController, commands);
+            if let Some(progress) = &view.running {
+                ui.separator();
+                job_row(
                     ui,
-                    view.running.as_ref(),
-                    ("Open", UiCommand::OpenRecording),
+                    Some(progress),
+                    ("", UiCommand::CancelSourceChange),
                     UiCommand::CancelSourceChange,
                     commands,
-                ),
+                );
             }
             error_line(ui, view.error.as_ref());
             if let Some(label) = &view.return_label {
@@ -107,5 +133,20 @@ pub fn source_ui(
         });
     if open != forms.source_window {
         commands.push(UiCommand::ToggleSourceWindow);
+    }
+}
+
+/// A button that starts a change: off while one may not start (the reason is shown once,
+/// above) or one is running (its progress is shown once, below).
+fn change_button(
+    ui: &mut egui::Ui,
+    view: &SourceView,
+    label: &str,
+    command: UiCommand,
+    commands: &mut Vec<UiCommand>,
+) {
+    let enabled = view.refused.is_none() && view.running.is_none();
+    if ui.add_enabled(enabled, egui::Button::new(label)).clicked() {
+        commands.push(command);
     }
 }
