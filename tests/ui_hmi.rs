@@ -77,6 +77,7 @@ fn start_on(
             settings_path: None,
             history_budget_bytes,
             thresholds: StatusThresholds::default(),
+            machine_record_dir: Some(record_dir.clone()),
             users_path,
             audit_path: audit_path.clone(),
             limits: CompensationLimits::default(),
@@ -1452,9 +1453,23 @@ fn the_source_window_opens_a_recording_and_goes_back_to_the_twin() {
         "a paused replay sends nothing"
     );
     assert!(shows(h, "600 × real time, paused"));
-    type_into(h, "Running speed (× real time)", "1200");
+    // Slowed to 2 ×, a second of wall clock moves the machine time by seconds, not minutes.
+    type_into(h, "Running speed (× real time)", "2");
     click(h, "Set speed");
     click(h, "Resume");
+    assert!(shows(h, "now 2 × real time"));
+    let before = h.state().state.latest.time_s().unwrap_or_default();
+    for _ in 0..20 {
+        std::thread::sleep(Duration::from_millis(50));
+        h.step();
+    }
+    let moved = h.state().state.latest.time_s().unwrap_or_default() - before;
+    assert!(
+        moved < 30.0,
+        "at 2 × the replay moved {moved} s in a second"
+    );
+    h.state_mut().settings.forms.running_speed = "1200".into();
+    click(h, "Set speed");
     assert!(shows(h, "now 1200 × real time"));
     // The whole recording is replayed across its pieces (3600 s at 1200 ×: 3 s).
     step_until_within(h, "the last piece's rows", 40, |app| {
@@ -1525,29 +1540,50 @@ fn a_push_waiting_for_its_approver_keeps_the_source() {
 }
 
 /// The Source window connects to a controller: pymodbus on one end of a socat pty pair (the
-/// peer of tests/modbus_peer.rs), the HMI's link on the other. A device that is not there is
-/// refused with its name and the twin runs on; on the controller its frames arrive, its
-/// compensation table is read and it is recorded; leaving it takes the operator's tick.
+/// peer of tests/modbus_peer.rs), the HMI's link on the other. Refused with the running twin
+/// left as it is: a device that is not there (named), a blank profile (the twin's would judge
+/// a machine by the twin), a line on which nothing answers. On the controller its frames
+/// arrive, its table is read and it is recorded; its own line is refused for a second link;
+/// leaving it, by a recording or by going back, takes the operator's tick.
 #[test]
 fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
+    use servosight::ui::panels::UiCommand;
     crate::modbus_peer::require_tools();
     let mut f = start();
     let dir = f._dir.path().to_path_buf();
+    let pieces = hour_in_pieces(&dir);
     let pair = crate::modbus_peer::pty_pair(&dir, "line");
     let _peer = crate::modbus_peer::start_peer(&dir, &pair.b, &Default::default());
+    let silent = crate::modbus_peer::pty_pair(&dir, "silent");
     let h = &mut f.harness;
     step_until(h, "the twin's frames", |app| app.state.link.frames > 10);
     let twin_source = h.state().state.link.source.clone();
     assert_eq!(recordings_in(&f.record_dir), 1, "the twin is recorded");
+    let refused = |h: &mut Harness<'static, HmiApp>, what: &str| {
+        step_until(h, what, |app| {
+            app.state.source.running.is_none() && app.state.source.error.is_some()
+        });
+        assert_eq!(h.state().state.link.source, twin_source, "{what}");
+        h.state().state.source.error.clone().unwrap_or_default()
+    };
 
     click(h, "Source…");
     let missing = dir.join("no-such-tty");
     type_into(h, "Serial device", missing.to_str().expect("utf-8 path"));
     click(h, "Connect");
-    step_until(h, "the refusal", |app| app.state.source.error.is_some());
-    let error = h.state().state.source.error.clone().unwrap_or_default();
+    let error = refused(h, "the missing device's refusal");
     assert!(error.contains("no-such-tty"), "{error}");
-    assert_eq!(h.state().state.link.source, twin_source);
+
+    h.state_mut().settings.forms.connect_device = pair.a.display().to_string();
+    click(h, "Connect");
+    let error = refused(h, "the blank profile's refusal");
+    assert!(error.contains("give the machine profile"), "{error}");
+
+    h.state_mut().settings.forms.open_profile = "none".into();
+    h.state_mut().settings.forms.connect_device = silent.a.display().to_string();
+    click(h, "Connect");
+    let error = refused(h, "the silent line's refusal");
+    assert!(error.contains("nothing answered"), "{error}");
 
     h.state_mut().settings.forms.connect_device = pair.a.display().to_string();
     click(h, "Connect");
@@ -1564,7 +1600,7 @@ fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
     );
     let change = app.state.source.last_change.clone().unwrap_or_default();
     assert!(
-        change.contains("connected to") && change.contains("recorded into"),
+        change.contains("on Modbus RTU") && change.contains("recorded into"),
         "{change}"
     );
     assert!(
@@ -1575,6 +1611,11 @@ fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
         recordings_in(&f.record_dir) == 2
     });
 
+    // Without the tick nothing leaves the controller: neither a recording nor the way back.
+    h.state_mut().settings.forms.open_recording = pieces[0].display().to_string();
+    h.state_mut().execute(UiCommand::OpenRecording);
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("stop monitoring the controller"), "{error}");
     click(h, "Back to the start source (embedded twin)");
     let error = h.state().state.source.error.clone().unwrap_or_default();
     assert!(error.contains("stop monitoring the controller"), "{error}");
@@ -1583,6 +1624,10 @@ fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
         "nothing was started"
     );
     click(h, "stop monitoring the controller");
+    // Its own line cannot take a second link.
+    h.state_mut().execute(UiCommand::ConnectController);
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("the running controller's line"), "{error}");
     click(h, "Back to the start source (embedded twin)");
     step_until(h, "the twin again", |app| {
         app.state.link.source == twin_source && app.state.source.controller.is_none()

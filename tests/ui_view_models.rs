@@ -699,6 +699,8 @@ fn source_window_view_models() {
     let mut s = state("normal");
     s.link.source = "Modbus RTU /dev/ttyUSB0 @ 115200 baud, slave 1".into();
     s.source.controller = Some(s.link.source.clone());
+    s.source.blank_controller_profile =
+        "blank: the one the HMI was started with on its controller (none)".into();
     let view = vm::source::build(&s);
     assert!(view.pace.is_none(), "a controller runs at its own pace");
     insta::assert_yaml_snapshot!("source_on_a_controller", view);

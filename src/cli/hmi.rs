@@ -42,10 +42,11 @@ pub struct Args {
     /// directory, e.g. ~/.local/share/servosight).
     #[arg(long, value_name = "DIR")]
     pub data_dir: Option<PathBuf>,
-    /// Record into this directory (default: DATA_DIR/recordings).
+    /// Record into this directory (default: DATA_DIR/recordings). A replay (--replay) is
+    /// recorded only into a directory given here: it is on disk already.
     #[arg(long, value_name = "DIR")]
     pub record_dir: Option<PathBuf>,
-    /// Start with the recorder off.
+    /// Start with the recorder off (a controller connected from the Source window too).
     #[arg(long)]
     pub no_record: bool,
     /// The users file (default: DATA_DIR/users.toml; add users with `compensate set-user`).
@@ -139,11 +140,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .clone()
         .unwrap_or_else(|| data_dir.join("audit.jsonl"));
     let limits = super::compensate::load_limits(args.limits.as_deref())?;
-    let record_dir = (!args.no_record).then(|| {
+    // Where the machine (the twin or a controller, also one connected from the Source window)
+    // is recorded. A recording replayed is on disk already: it is copied only into a
+    // directory given for it.
+    let machine_record_dir = (!args.no_record).then(|| {
         args.record_dir
             .clone()
             .unwrap_or_else(|| data_dir.join("recordings"))
     });
+    let record_dir = match &source {
+        SourceSpec::Replay { .. } => args.record_dir.clone().filter(|_| !args.no_record),
+        _ => machine_record_dir.clone(),
+    };
     let session = SessionConfig {
         source,
         record_dir,
@@ -162,6 +170,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 fault: args.stator_fault_c,
             },
         },
+        machine_record_dir,
         users_path,
         audit_path,
         limits,

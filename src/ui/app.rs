@@ -17,8 +17,8 @@ use super::sim_vs_real::{
     read_shared_columns, run_discrepancy, run_save_report,
 };
 use super::source::{
-    ProfileChoice, SourceChange, SwitchContext, Switched, parse_connect_form, parse_open_form,
-    parse_speed, run_switch,
+    Endings, ProfileChoice, SourceChange, SwitchContext, Switched, parse_connect_form,
+    parse_open_form, parse_speed, run_switch,
 };
 use super::state::{
     CompensationState, Event, EventKind, HmiState, JobProgress, LinkSnapshot, PushFlow, Severity,
@@ -95,6 +95,9 @@ pub struct HmiOptions {
     pub history_budget_bytes: usize,
     /// Limits of the live readings.
     pub thresholds: StatusThresholds,
+    /// Where a controller opened from the *Source* window is recorded (`None`: the HMI was
+    /// started with the recorder off).
+    pub machine_record_dir: Option<PathBuf>,
     /// The users file shown in the Compensation panel.
     pub users_path: PathBuf,
     /// The audit log shown in the Compensation panel.
@@ -115,6 +118,9 @@ const DISCREPANCY_POINTS: usize = 1500;
 const DISCREPANCY_PNG_WIDTH: u32 = 1400;
 /// Points per line in the sim-vs-real PNG (about one per pixel of its plots).
 const DISCREPANCY_PNG_POINTS: usize = 1400;
+/// How long the exit, or a cancelled change's follower, waits for a source change to end
+/// (a controller's answer is waited for 3 s, a previous session's end as long as it takes).
+const JOB_END_WAIT: Duration = Duration::from_secs(30);
 /// How often settings are saved while running.
 const SAVE_EVERY: Duration = Duration::from_secs(10);
 
@@ -147,20 +153,31 @@ pub struct HmiApp {
     applied_theme: Option<bool>,
     /// How the app was set up (a new source's state is built from it).
     options: HmiOptions,
-    /// The session the HMI was started on, to go back to from a recording.
+    /// The session the HMI was started on, to go back to from another source.
     start_config: SessionConfig,
     /// What its link called it.
     start_label: String,
     /// Starting another source while the running one goes on.
     switch_job: Option<Job<Switched>>,
     /// Sessions ending off the UI thread (the next change and the exit wait for them).
-    endings: Vec<std::thread::JoinHandle<()>>,
+    endings: Endings,
 }
 
 impl HmiApp {
     /// The app on a running session.
     pub fn new(session: Session, options: HmiOptions) -> HmiApp {
-        let state = fresh_state(&session, &options);
+        let mut state = fresh_state(&session, &options);
+        state.source.blank_controller_profile = match &session.config().source {
+            SourceSpec::Serial(_) => format!(
+                "blank: the one the HMI was started with on its controller ({})",
+                session
+                    .profile()
+                    .map_or("none".to_string(), |p| format!("`{}`", p.name))
+            ),
+            _ => "blank: refused (the HMI was not started on a controller): give this \
+                  machine's (TOML), or `none` for no estimators"
+                .into(),
+        };
         let names = state.latest.names.clone();
         let mut settings = options
             .settings_path
@@ -198,7 +215,7 @@ impl HmiApp {
         HmiApp {
             start_config: session.config().clone(),
             start_label: session.source().to_string(),
-            endings: Vec::new(),
+            endings: Endings::default(),
             session,
             state,
             saved_settings: settings.clone(),
@@ -409,10 +426,14 @@ impl HmiApp {
 
     /// Starts `change` on a job; the running source goes on until the new one has started.
     fn start_switch(&mut self, change: SourceChange) {
-        if self.switch_job.is_some() {
+        if self.switch_job.is_some() || self.leaving_controller_unconfirmed() {
             return;
         }
-        if let Some(reason) = self.state.source_change_refused() {
+        if let Some(reason) = self
+            .state
+            .source_change_refused()
+            .or_else(|| self.same_line(&change))
+        {
             self.state.source.error = Some(reason);
             return;
         }
@@ -432,6 +453,7 @@ impl HmiApp {
         let inputs = SwitchContext {
             running: self.session.config().clone(),
             start: self.start_config.clone(),
+            machine_record_dir: self.options.machine_record_dir.clone(),
             earlier_endings: std::mem::take(&mut self.endings),
             running_saved,
         };
@@ -451,6 +473,29 @@ impl HmiApp {
                 self.state.source.error = Some(format!("cannot start {what}: {error}"));
             }
         }
+    }
+
+    /// Why `change` cannot be made while the running controller holds its serial line (the
+    /// line is opened for one user at a time, and the running session lets it go only once
+    /// the new one runs).
+    fn same_line(&self, change: &SourceChange) -> Option<String> {
+        let SourceSpec::Serial(running) = &self.session.config().source else {
+            return None;
+        };
+        let port = match change {
+            SourceChange::Connect { modbus, .. } => &modbus.port,
+            SourceChange::Return => match &self.start_config.source {
+                SourceSpec::Serial(start) => &start.port,
+                _ => return None,
+            },
+            SourceChange::Open(_) => return None,
+        };
+        (*port == running.port).then(|| {
+            format!(
+                "{port} is the running controller's line: to reach it with other settings, \
+                 first open another source here (a recording, or Back to the start source)"
+            )
+        })
     }
 
     /// Whether the running source is a controller the operator has not agreed to stop
@@ -477,13 +522,20 @@ impl HmiApp {
             return;
         };
         job.cancel();
-        while let Some(message) = job.try_next() {
-            if let JobMessage::Done(switched) = message {
-                self.end_off_the_ui_thread(switched.session, None);
-            }
-        }
         self.state.source.running = None;
         self.state.source.error = Some(format!("{}: cancelled", job.title));
+        // A session the job started all the same is ended off the UI thread.
+        let ended = self.endings.run(move || {
+            if let Some(JobMessage::Done(switched)) = job.wait_end(JOB_END_WAIT) {
+                drop(switched);
+            }
+        });
+        if let Err(error) = ended {
+            self.job_event(
+                Severity::Warning,
+                format!("the cancelled change is followed on the UI thread: {error}"),
+            );
+        }
     }
 
     /// Follows the source change; once the new session runs, it takes the old one's place.
@@ -526,15 +578,11 @@ impl HmiApp {
     /// (its history may hold hundreds of megabytes) on a thread of their own; the next source
     /// change, and the app's exit, wait for it. Without a thread they end here.
     fn end_off_the_ui_thread(&mut self, session: Session, state: Option<HmiState>) {
-        let ending = std::thread::Builder::new()
-            .name("servosight-session-end".into())
-            .spawn(move || drop((session, state)));
-        match ending {
-            Ok(handle) => self.endings.push(handle),
-            Err(error) => self.job_event(
+        if let Err(error) = self.endings.run(move || drop((session, state))) {
+            self.job_event(
                 Severity::Warning,
                 format!("the previous source was ended on the UI thread: {error}"),
-            ),
+            );
         }
     }
 
@@ -546,10 +594,15 @@ impl HmiApp {
             session,
             summary,
             is_start,
+            early_updates,
         } = switched;
         let mut old = std::mem::replace(&mut self.session, session);
-        // What the old session still had to say (a recorder or link fault) is kept.
-        while let Some(update) = old.try_recv() {
+        // What the old session still had to say (a recorder or link fault) is kept, as much
+        // as one frame's ingest budget takes: a fast replay could keep it talking.
+        let started = Instant::now();
+        while started.elapsed() < self.ingest_budget
+            && let Some(update) = old.try_recv()
+        {
             if let super::session::SessionUpdate::Event(event) = update {
                 self.state.events.push(event);
             }
@@ -606,6 +659,9 @@ impl HmiApp {
         self.state
             .events
             .push(Event::now(EventKind::Link, Severity::Normal, text));
+        for update in early_updates {
+            self.state.apply(update);
+        }
     }
 
     /// Follows the sim-vs-real analysis and the header read behind its target choice.
@@ -872,6 +928,14 @@ impl HmiApp {
         let operator = self.settings.forms.checklist_operator.trim().to_string();
         let view = vm::warmup::build(&self.state);
         let warmup = &mut self.state.warmup;
+        if self.switch_job.is_some() {
+            warmup.notice = Some(
+                "the source is changing (Source window): sign off once it has, on the source \
+                 that then runs"
+                    .into(),
+            );
+            return;
+        }
         if operator.is_empty() {
             warmup.notice = Some("enter your name to sign the checklist off".into());
             return;
@@ -1230,7 +1294,9 @@ impl HmiApp {
                 self.settings.forms.password.clear();
             }
             UiCommand::DismissResult => self.state.compensation.flow = PushFlow::Idle,
-            UiCommand::Refresh => self.send(SessionCommand::Refresh),
+            UiCommand::Refresh => {
+                self.send(SessionCommand::Refresh);
+            }
             UiCommand::StartFit => self.start_fit(),
             UiCommand::CancelFit => {
                 if let Some(job) = &self.fit_job {
@@ -1244,7 +1310,9 @@ impl HmiApp {
             UiCommand::ExportDiscrepancyPng => self.export_discrepancy_png(),
             UiCommand::SaveDiscrepancyReport => self.save_discrepancy_report(),
             UiCommand::CancelDiscrepancy => self.cancel_discrepancy(),
-            UiCommand::SetRecording(on) => self.send(SessionCommand::SetRecording(on)),
+            UiCommand::SetRecording(on) => {
+                self.send(SessionCommand::SetRecording(on));
+            }
             UiCommand::ToggleEventKind(kind) => {
                 let hidden = &mut self.settings.events.hidden;
                 let label = kind.label().to_string();
@@ -1256,11 +1324,14 @@ impl HmiApp {
             UiCommand::ToggleSourceWindow => {
                 self.settings.forms.source_window = !self.settings.forms.source_window;
             }
-            UiCommand::OpenRecording | UiCommand::ConnectController
-                if self.leaving_controller_unconfirmed() => {}
             UiCommand::ConnectController => {
                 let forms = &self.settings.forms;
+                let line = match (&self.start_config.source, &self.session.config().source) {
+                    (SourceSpec::Serial(line), _) | (_, SourceSpec::Serial(line)) => line.clone(),
+                    _ => crate::link::ModbusConfig::new(""),
+                };
                 match parse_connect_form(
+                    &line,
                     &forms.connect_device,
                     &forms.connect_baud,
                     &forms.connect_parity,
@@ -1285,31 +1356,37 @@ impl HmiApp {
                     Err(reason) => self.state.source.error = Some(reason),
                 }
             }
-            UiCommand::ReturnToStartSource => {
-                if !self.leaving_controller_unconfirmed() {
-                    self.start_switch(SourceChange::Return);
-                }
-            }
+            UiCommand::ReturnToStartSource => self.start_switch(SourceChange::Return),
             UiCommand::CancelSourceChange => self.cancel_switch(),
             UiCommand::SetPaused(paused) => {
-                if let Some(pace) = self.state.source.pace.as_mut() {
-                    pace.paused = paused;
-                    self.send(SessionCommand::SetPaused(paused));
+                // The pace shown is what the link was asked for, so only once it was asked.
+                if self.state.source.pace.is_some() && self.send(SessionCommand::SetPaused(paused))
+                {
+                    if let Some(pace) = self.state.source.pace.as_mut() {
+                        pace.paused = paused;
+                    }
                     let word = if paused { "paused" } else { "resumed" };
                     let text = format!("{} {word}", self.session.source());
-                    self.job_event(Severity::Normal, text);
+                    self.state
+                        .events
+                        .push(Event::now(EventKind::Link, Severity::Normal, text));
                 }
             }
             UiCommand::SetSpeed => match parse_speed(&self.settings.forms.running_speed) {
                 Ok(factor) => {
                     let speed = crate::link::ReplaySpeed::Factor(factor);
-                    if let Some(pace) = self.state.source.pace.as_mut() {
-                        pace.speed = speed;
+                    if self.state.source.pace.is_some()
+                        && self.send(SessionCommand::SetSpeed(speed))
+                    {
+                        if let Some(pace) = self.state.source.pace.as_mut() {
+                            pace.speed = speed;
+                        }
                         self.state.source.error = None;
-                        self.send(SessionCommand::SetSpeed(speed));
                         let text =
                             format!("{} runs at {factor} × real time", self.session.source());
-                        self.job_event(Severity::Normal, text);
+                        self.state
+                            .events
+                            .push(Event::now(EventKind::Link, Severity::Normal, text));
                     }
                 }
                 Err(reason) => self.state.source.error = Some(reason),
@@ -1317,13 +1394,18 @@ impl HmiApp {
         }
     }
 
-    fn send(&mut self, command: SessionCommand) {
-        if let Err(error) = self.session.send(command) {
-            self.state.events.push(Event::now(
-                EventKind::Link,
-                Severity::Fault,
-                error.to_string(),
-            ));
+    /// Sends `command` to the session; a refusal goes into the events and gives `false`.
+    fn send(&mut self, command: SessionCommand) -> bool {
+        match self.session.send(command) {
+            Ok(()) => true,
+            Err(error) => {
+                self.state.events.push(Event::now(
+                    EventKind::Link,
+                    Severity::Fault,
+                    error.to_string(),
+                ));
+                false
+            }
         }
     }
 
@@ -1563,10 +1645,14 @@ impl eframe::App for HmiApp {
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
         self.last_save = Instant::now() - SAVE_EVERY;
         self.save_settings();
-        // A session ending since a source change finishes its recorder file and saves its
-        // estimators' state before the process goes.
-        for ending in self.endings.drain(..) {
-            let _ = ending.join();
+        // A session ending since a source change, or started by a change still running,
+        // finishes its recorder file and saves its estimators' state before the process goes.
+        if let Some(job) = self.switch_job.take() {
+            job.cancel();
+            if let Some(JobMessage::Done(switched)) = job.wait_end(JOB_END_WAIT) {
+                drop(switched);
+            }
         }
+        self.endings.wait();
     }
 }

@@ -70,6 +70,25 @@ impl<T: Send + 'static> Job<T> {
         self.cancel.store(true, Ordering::Relaxed);
     }
 
+    /// Waits (at most `limit`) for the job's end and returns its final message, skipping its
+    /// progress; `None` if it has not ended by then. Not for the UI thread.
+    pub fn wait_end(&self, limit: std::time::Duration) -> Option<JobMessage<T>> {
+        let deadline = std::time::Instant::now() + limit;
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            match self.messages.recv_timeout(left) {
+                Ok(JobMessage::Progress(_)) => {}
+                Ok(end) => return Some(end),
+                Err(mpsc::RecvTimeoutError::Timeout) => return None,
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    return Some(JobMessage::Failed(
+                        "the job thread ended without a result".into(),
+                    ));
+                }
+            }
+        }
+    }
+
     /// The next message, if one is waiting; never waits.
     pub fn try_next(&self) -> Option<JobMessage<T>> {
         match self.messages.try_recv() {

@@ -411,7 +411,8 @@ impl Session {
     pub fn estimators(&self) -> String {
         match (&self.config.profile, &self.estimators_off) {
             (None, _) => "no estimators (no machine profile)".into(),
-            (Some(_), Some(why)) => format!("no estimators ({why})"),
+            // `why` says "estimators off (profile): …" already.
+            (Some(_), Some(why)) => why.clone(),
             (Some(profile), None) => format!("the estimators of profile `{}`", profile.name),
         }
     }

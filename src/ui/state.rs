@@ -559,6 +559,8 @@ pub struct SourceState {
     /// The running controller, when the source is one (leaving it stops watching the
     /// machine, so the operator confirms it).
     pub controller: Option<String>,
+    /// What a blank profile field means for a controller connected from the window.
+    pub blank_controller_profile: String,
 }
 
 /// A source change on its way.

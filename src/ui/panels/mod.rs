@@ -351,21 +351,31 @@ pub(super) fn job_row(
     cancel: UiCommand,
     commands: &mut Vec<UiCommand>,
 ) {
-    ui.horizontal(|ui| match running {
-        Some(progress) => {
-            let bar = egui::ProgressBar::new(progress.fraction.unwrap_or(0.0))
-                .text(&progress.stage)
-                .desired_width(420.0)
-                .animate(true);
-            ui.add(bar);
-            if ui.button("Cancel").clicked() {
-                commands.push(cancel);
-            }
-        }
+    match running {
+        Some(progress) => progress_row(ui, progress, cancel, commands),
         None => {
             if ui.button(start.0).clicked() {
                 commands.push(start.1);
             }
+        }
+    }
+}
+
+/// A running job's progress bar with its Cancel button.
+pub(super) fn progress_row(
+    ui: &mut egui::Ui,
+    progress: &super::state::JobProgress,
+    cancel: UiCommand,
+    commands: &mut Vec<UiCommand>,
+) {
+    ui.horizontal(|ui| {
+        let bar = egui::ProgressBar::new(progress.fraction.unwrap_or(0.0))
+            .text(&progress.stage)
+            .desired_width(420.0)
+            .animate(true);
+        ui.add(bar);
+        if ui.button("Cancel").clicked() {
+            commands.push(cancel);
         }
     });
 }

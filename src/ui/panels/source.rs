@@ -1,9 +1,10 @@
-//! The *Source* window: the running source, a recording to open in its place, and the way
-//! back to the source the HMI was started on.
+//! The *Source* window: the running source (with pause and speed for a replay or the twin), a
+//! recording or a controller to run in its place, and the way back to the source the HMI was
+//! started on.
 
 use eframe::egui;
 
-use super::{Forms, UiCommand, error_line, job_row, labelled_text};
+use super::{Forms, UiCommand, error_line, labelled_text, progress_row};
 use crate::ui::vm::source::SourceView;
 
 /// Draws the window while `forms.source_window` is set (its close button clears it).
@@ -97,7 +98,11 @@ pub fn source_ui(
             change_button(ui, view, "Open", UiCommand::OpenRecording, commands);
             ui.add_space(4.0);
             ui.strong("A controller (Modbus RTU)");
-            ui.small("Recorded as the HMI was started to record. Blank: 115200 baud, no parity, slave 1.");
+            ui.small(format!(
+                "Recorded where the HMI records the machine. Profile {}. It must answer within \
+                 3 s, or the running source stays.",
+                view.controller_profile_hint
+            ));
             egui::Grid::new("connect controller form")
                 .num_columns(2)
                 .spacing([8.0, 6.0])
@@ -106,7 +111,12 @@ pub fn source_ui(
                     ui.end_row();
                     labelled_text(ui, "Baud", &mut forms.connect_baud, 80.0);
                     ui.end_row();
-                    labelled_text(ui, "Parity (none, even, odd)", &mut forms.connect_parity, 80.0);
+                    labelled_text(
+                        ui,
+                        "Parity (none, even, odd)",
+                        &mut forms.connect_parity,
+                        80.0,
+                    );
                     ui.end_row();
                     labelled_text(ui, "Slave id", &mut forms.connect_slave, 80.0);
                     ui.end_row();
@@ -114,21 +124,12 @@ pub fn source_ui(
             change_button(ui, view, "Connect", UiCommand::ConnectController, commands);
             if let Some(progress) = &view.running {
                 ui.separator();
-                job_row(
-                    ui,
-                    Some(progress),
-                    ("", UiCommand::CancelSourceChange),
-                    UiCommand::CancelSourceChange,
-                    commands,
-                );
+                progress_row(ui, progress, UiCommand::CancelSourceChange, commands);
             }
             error_line(ui, view.error.as_ref());
             if let Some(label) = &view.return_label {
                 ui.separator();
-                let enabled = view.refused.is_none() && view.running.is_none();
-                if ui.add_enabled(enabled, egui::Button::new(label)).clicked() {
-                    commands.push(UiCommand::ReturnToStartSource);
-                }
+                change_button(ui, view, label, UiCommand::ReturnToStartSource, commands);
             }
         });
     if open != forms.source_window {

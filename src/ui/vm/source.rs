@@ -11,8 +11,12 @@ use crate::ui::state::{HmiState, JobProgress};
 pub struct SourceView {
     /// "the recording shift.csv — connected".
     pub current: String,
-    /// What a blank profile field means: the running session's profile, or none.
+    /// What a blank profile field means for a recording: the running session's profile, or
+    /// none.
     pub profile_hint: String,
+    /// What it means for a controller: the profile the HMI was started with on a
+    /// controller, or a refusal.
+    pub controller_profile_hint: String,
     /// Why a change is refused now (the buttons are off and this is shown).
     pub refused: Option<String>,
     /// The change being made and how far it is.
@@ -49,9 +53,15 @@ pub fn build(state: &HmiState) -> SourceView {
         Some(profile) => format!("blank: the running profile `{}`", profile.name),
         None => "blank: no estimators (the running source has no profile)".into(),
     };
+    let back = if state.source.start_source_label.is_none() {
+        "Back to the start source"
+    } else {
+        "connecting to it again"
+    };
     SourceView {
         current: format!("{} — {link_state}", state.link.source),
-        profile_hint,
+        profile_hint: format!("for a recording, {profile_hint}; `none`: no estimators"),
+        controller_profile_hint: state.source.blank_controller_profile.clone(),
         refused: state.source_change_refused(),
         running: state.source.running.as_ref().map(|change| JobProgress {
             stage: format!("{}: {}", change.what, change.progress.stage),
@@ -65,8 +75,8 @@ pub fn build(state: &HmiState) -> SourceView {
             .map(|source| format!("Back to the start source ({source})")),
         leaves_controller: state.source.controller.as_ref().map(|controller| {
             format!(
-                "opening a recording stops monitoring the controller ({controller}): it is \
-                 neither watched nor recorded until you come back to it here"
+                "changing the source stops monitoring the controller ({controller}): it is \
+                 neither watched nor recorded until it runs here again ({back})"
             )
         }),
         last_change: state.source.last_change.clone(),
