@@ -1633,3 +1633,55 @@ fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
         app.state.link.source == twin_source && app.state.source.controller.is_none()
     });
 }
+
+/// While a change runs (here a connect that waits for a line on which nothing answers), no
+/// push is requested and no checklist signed off, and *Cancel* keeps the running twin and
+/// leaves no recording of the attempt.
+#[test]
+fn while_the_source_changes_nothing_is_requested_and_cancel_keeps_the_twin() {
+    use servosight::ui::panels::UiCommand;
+    crate::modbus_peer::require_tools();
+    let mut f = start();
+    let dir = f._dir.path().to_path_buf();
+    let silent = crate::modbus_peer::pty_pair(&dir, "silent");
+    let h = &mut f.harness;
+    step_until(h, "the controller's table and the users", |app| {
+        app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
+    });
+    let twin_source = h.state().state.link.source.clone();
+    click(h, "Compensation");
+    type_into(h, "New value [µm]", "2.5");
+    click(h, "Add change");
+    type_into(h, "Why", "test");
+    type_into(h, "Operator", "otto");
+    let forms = &mut h.state_mut().settings.forms;
+    forms.connect_device = silent.a.display().to_string();
+    forms.open_profile = "none".into();
+    forms.checklist_operator = "otto".into();
+    h.state_mut().execute(UiCommand::ConnectController);
+    assert!(h.state().state.source.running.is_some(), "the change runs");
+    h.state_mut().execute(UiCommand::RequestPush);
+    assert!(matches!(h.state().state.compensation.flow, PushFlow::Idle));
+    let notice = h
+        .state()
+        .state
+        .compensation
+        .notice
+        .clone()
+        .unwrap_or_default();
+    assert!(notice.contains("the source is changing"), "{notice}");
+    h.state_mut().execute(UiCommand::SignOffWarmup);
+    let notice = h.state().state.warmup.notice.clone().unwrap_or_default();
+    assert!(notice.contains("the source is changing"), "{notice}");
+
+    h.state_mut().execute(UiCommand::CancelSourceChange);
+    let error = h.state().state.source.error.clone().unwrap_or_default();
+    assert!(error.contains("cancelled"), "{error}");
+    // Past the 3 s the line would have had: still the twin, and one recording (its own).
+    let frames = h.state().state.link.frames;
+    std::thread::sleep(Duration::from_secs(4));
+    step_until(h, "the twin running on", |app| {
+        app.state.link.frames > frames && app.state.link.source == twin_source
+    });
+    assert_eq!(recordings_in(&f.record_dir), 1);
+}
