@@ -271,9 +271,9 @@ fn approval_refuses_a_wrong_credential_and_writes_with_the_right_one() {
     );
 }
 
-/// Once the controller's table and the users are read, otto requests backlash.X = 2.5 µm:
-/// the request then waits for its approver.
-fn request_a_push_of_backlash_x(h: &mut Harness<'static, HmiApp>) {
+/// Once the controller's table and the users are read, otto drafts backlash.X = 2.5 µm with
+/// its why, ready to request.
+fn draft_backlash_x(h: &mut Harness<'static, HmiApp>) {
     step_until(h, "the controller's table and the users", |app| {
         app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
     });
@@ -282,6 +282,11 @@ fn request_a_push_of_backlash_x(h: &mut Harness<'static, HmiApp>) {
     click(h, "Add change");
     type_into(h, "Why", "test");
     type_into(h, "Operator", "otto");
+}
+
+/// [`draft_backlash_x`], then the request: it waits for its approver.
+fn request_a_push_of_backlash_x(h: &mut Harness<'static, HmiApp>) {
+    draft_backlash_x(h);
     click(h, "Request push");
     assert!(matches!(
         h.state().state.compensation.flow,
@@ -1588,7 +1593,7 @@ fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
     h.state_mut().settings.forms.connect_device = pair.a.display().to_string();
     click(h, "Connect");
     step_until(h, "the controller's frames and table", |app| {
-        app.state.source.controller.is_some()
+        app.state.controller.is_some()
             && app.state.link.state == ConnectionState::Connected
             && app.state.compensation.controller.is_some()
     });
@@ -1604,7 +1609,7 @@ fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
         "{change}"
     );
     assert!(
-        app.state.source.pace.is_none(),
+        app.state.pace.is_none(),
         "a controller runs at its own pace"
     );
     step_until(h, "the controller's recording", |_| {
@@ -1630,7 +1635,7 @@ fn the_source_window_connects_to_a_controller_and_leaving_it_takes_a_tick() {
     assert!(error.contains("the running controller's line"), "{error}");
     click(h, "Back to the start source (embedded twin)");
     step_until(h, "the twin again", |app| {
-        app.state.link.source == twin_source && app.state.source.controller.is_none()
+        app.state.link.source == twin_source && app.state.controller.is_none()
     });
 }
 
@@ -1645,15 +1650,8 @@ fn while_the_source_changes_nothing_is_requested_and_cancel_keeps_the_twin() {
     let dir = f._dir.path().to_path_buf();
     let silent = crate::modbus_peer::pty_pair(&dir, "silent");
     let h = &mut f.harness;
-    step_until(h, "the controller's table and the users", |app| {
-        app.state.compensation.controller.is_some() && !app.state.compensation.users.is_empty()
-    });
+    draft_backlash_x(h);
     let twin_source = h.state().state.link.source.clone();
-    click(h, "Compensation");
-    type_into(h, "New value [µm]", "2.5");
-    click(h, "Add change");
-    type_into(h, "Why", "test");
-    type_into(h, "Operator", "otto");
     let forms = &mut h.state_mut().settings.forms;
     forms.connect_device = silent.a.display().to_string();
     forms.open_profile = "none".into();

@@ -674,7 +674,7 @@ fn source_window_view_models() {
     s.link.source = "replay of /data/shift.csv".into();
     s.profile = Some(twin_profile());
     s.source.start_source_label = Some("embedded twin".into());
-    s.source.pace = Some(servosight::ui::session::Pace {
+    s.pace = Some(servosight::ui::session::Pace {
         paused: true,
         speed: servosight::link::ReplaySpeed::Factor(60.0),
     });
@@ -698,7 +698,7 @@ fn source_window_view_models() {
     // On a controller, opening a recording says what it stops.
     let mut s = state("normal");
     s.link.source = "Modbus RTU /dev/ttyUSB0 @ 115200 baud, slave 1".into();
-    s.source.controller = Some(s.link.source.clone());
+    s.controller = Some(s.link.source.clone());
     s.source.blank_controller_profile =
         "blank: the one the HMI was started with on its controller (none)".into();
     let view = vm::source::build(&s);

@@ -501,7 +501,7 @@ impl HmiApp {
     /// Whether the running source is a controller the operator has not agreed to stop
     /// monitoring (and says so: the change waits for the tick).
     fn leaving_controller_unconfirmed(&mut self) -> bool {
-        let Some(controller) = &self.state.source.controller else {
+        let Some(controller) = &self.state.controller else {
             return false;
         };
         if self.settings.forms.open_leave_controller {
@@ -627,9 +627,7 @@ impl HmiApp {
         let mut state = fresh_state(&self.session, &self.options);
         state.events = std::mem::take(&mut self.state.events);
         state.model_lab = std::mem::take(&mut self.state.model_lab);
-        let running = (state.source.pace, state.source.controller.take());
         state.source = std::mem::take(&mut self.state.source);
-        (state.source.pace, state.source.controller) = running;
         let old_state = std::mem::replace(&mut self.state, state);
         self.end_off_the_ui_thread(old, Some(old_state));
         let names = self.state.latest.names.clone();
@@ -1360,9 +1358,8 @@ impl HmiApp {
             UiCommand::CancelSourceChange => self.cancel_switch(),
             UiCommand::SetPaused(paused) => {
                 // The pace shown is what the link was asked for, so only once it was asked.
-                if self.state.source.pace.is_some() && self.send(SessionCommand::SetPaused(paused))
-                {
-                    if let Some(pace) = self.state.source.pace.as_mut() {
+                if self.state.pace.is_some() && self.send(SessionCommand::SetPaused(paused)) {
+                    if let Some(pace) = self.state.pace.as_mut() {
                         pace.paused = paused;
                     }
                     let word = if paused { "paused" } else { "resumed" };
@@ -1375,10 +1372,8 @@ impl HmiApp {
             UiCommand::SetSpeed => match parse_speed(&self.settings.forms.running_speed) {
                 Ok(factor) => {
                     let speed = crate::link::ReplaySpeed::Factor(factor);
-                    if self.state.source.pace.is_some()
-                        && self.send(SessionCommand::SetSpeed(speed))
-                    {
-                        if let Some(pace) = self.state.source.pace.as_mut() {
+                    if self.state.pace.is_some() && self.send(SessionCommand::SetSpeed(speed)) {
+                        if let Some(pace) = self.state.pace.as_mut() {
                             pace.speed = speed;
                         }
                         self.state.source.error = None;
@@ -1552,8 +1547,8 @@ fn fresh_state(session: &Session, options: &HmiOptions) -> HmiState {
     );
     state.thresholds = options.thresholds;
     state.profile = session.profile().cloned();
-    state.source.pace = pace_of(&session.config().source);
-    state.source.controller = matches!(session.config().source, SourceSpec::Serial(_))
+    state.pace = pace_of(&session.config().source);
+    state.controller = matches!(session.config().source, SourceSpec::Serial(_))
         .then(|| session.source().to_string());
     state.estimate_limits = session
         .profile()

@@ -170,7 +170,7 @@ pub(crate) struct SwitchContext {
 /// How long the job waits for the running session to save its estimators' state.
 const SAVE_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 /// How long a controller has to answer before the change is given up.
-const ANSWER_WAIT: std::time::Duration = std::time::Duration::from_secs(3);
+pub const ANSWER_WAIT: std::time::Duration = std::time::Duration::from_secs(3);
 
 /// A started session and what the operator should be told about it.
 pub struct Switched {
@@ -184,16 +184,6 @@ pub struct Switched {
     /// What the session said while the job waited for it to answer, in order (the app takes
     /// them in as if they had come after the change).
     pub early_updates: Vec<SessionUpdate>,
-}
-
-impl std::fmt::Debug for Switched {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Switched")
-            .field("source", &self.session.source())
-            .field("summary", &self.summary)
-            .field("is_start", &self.is_start)
-            .finish()
-    }
 }
 
 /// The job: checks the recording (every piece's header) or the device, and the profile;

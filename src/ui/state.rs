@@ -540,10 +540,14 @@ pub struct HmiState {
     pub depth: DepthState,
     /// Opening another source from the *Source* window.
     pub source: SourceState,
+    /// The running replay's or twin's pace (`None` on a controller).
+    pub pace: Option<super::session::Pace>,
+    /// The running controller, when the source is one (leaving it stops watching the
+    /// machine, so the operator confirms it).
+    pub controller: Option<String>,
 }
 
-/// The *Source* window's state: kept when the source changes, like the events (but for
-/// what describes the running source, which is set anew).
+/// The *Source* window's state: kept when the source changes, like the events.
 #[derive(Debug, Clone, Default)]
 pub struct SourceState {
     /// The change being made and how far it is.
@@ -554,11 +558,6 @@ pub struct SourceState {
     pub start_source_label: Option<String>,
     /// The last change, as told in the events.
     pub last_change: Option<String>,
-    /// The running replay's or twin's pace (`None` on a controller).
-    pub pace: Option<super::session::Pace>,
-    /// The running controller, when the source is one (leaving it stops watching the
-    /// machine, so the operator confirms it).
-    pub controller: Option<String>,
     /// What a blank profile field means for a controller connected from the window.
     pub blank_controller_profile: String,
 }
@@ -653,6 +652,8 @@ impl HmiState {
             warmup: WarmupState::default(),
             depth: DepthState::default(),
             source: SourceState::default(),
+            pace: None,
+            controller: None,
         }
     }
 

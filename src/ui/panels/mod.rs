@@ -380,6 +380,11 @@ pub(super) fn progress_row(
     });
 }
 
+/// Something the operator should heed before acting, in the warning colour.
+pub(super) fn warning_line(ui: &mut egui::Ui, text: &str) {
+    ui.colored_label(severity_color(Severity::Warning), text);
+}
+
 /// A failed job's reason, in the fault colour.
 pub(super) fn error_line(ui: &mut egui::Ui, error: Option<&String>) {
     if let Some(error) = error {

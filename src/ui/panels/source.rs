@@ -62,20 +62,14 @@ pub fn source_ui(
                     ui.end_row();
                 });
             if let Some(warning) = &view.leaves_controller {
-                ui.colored_label(
-                    super::severity_color(crate::ui::state::Severity::Warning),
-                    warning,
-                );
+                super::warning_line(ui, warning);
                 ui.checkbox(
                     &mut forms.open_leave_controller,
                     "stop monitoring the controller",
                 );
             }
             if let Some(reason) = &view.refused {
-                ui.colored_label(
-                    super::severity_color(crate::ui::state::Severity::Warning),
-                    reason,
-                );
+                super::warning_line(ui, reason);
             }
             ui.add_space(4.0);
             ui.strong("A recording");
@@ -100,8 +94,9 @@ pub fn source_ui(
             ui.strong("A controller (Modbus RTU)");
             ui.small(format!(
                 "Recorded where the HMI records the machine. Profile {}. It must answer within \
-                 3 s, or the running source stays.",
-                view.controller_profile_hint
+                 {} s, or the running source stays.",
+                view.controller_profile_hint,
+                crate::ui::source::ANSWER_WAIT.as_secs()
             ));
             egui::Grid::new("connect controller form")
                 .num_columns(2)

@@ -29,17 +29,11 @@ pub fn status_ui(ui: &mut egui::Ui, view: &StatusView, commands: &mut Vec<UiComm
         ui.label(&view.machine_time);
         if let Some(away) = &view.away_from_start {
             ui.separator();
-            ui.colored_label(
-                super::severity_color(crate::ui::state::Severity::Warning),
-                away,
-            );
+            super::warning_line(ui, away);
         }
         if let Some(missed) = &view.frames_not_shown {
             ui.separator();
-            ui.colored_label(
-                super::severity_color(crate::ui::state::Severity::Warning),
-                missed,
-            );
+            super::warning_line(ui, missed);
         }
     });
     ui.small(&view.link_detail);

@@ -73,14 +73,14 @@ pub fn build(state: &HmiState) -> SourceView {
             .start_source_label
             .as_ref()
             .map(|source| format!("Back to the start source ({source})")),
-        leaves_controller: state.source.controller.as_ref().map(|controller| {
+        leaves_controller: state.controller.as_ref().map(|controller| {
             format!(
                 "changing the source stops monitoring the controller ({controller}): it is \
                  neither watched nor recorded until it runs here again ({back})"
             )
         }),
         last_change: state.source.last_change.clone(),
-        pace: state.source.pace.map(|pace| {
+        pace: state.pace.map(|pace| {
             let speed = match pace.speed {
                 ReplaySpeed::Factor(factor) => format!("{factor} × real time"),
                 ReplaySpeed::AsFastAsPossible => "as fast as the frames are taken".into(),
