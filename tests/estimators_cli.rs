@@ -826,8 +826,9 @@ fn estimate_says_where_the_spindle_elongation_counts_from() {
 
 /// Calibration fits every part's warm start, and says which calibration recording starts on a
 /// warm machine and which does not: an experiment's start is fitted free for the heat models
-/// (the report says so of the models it joined), and the spindle elongation is calibrated
-/// without it.
+/// (the report says so of the models it joined), and the spindle elongation, with no
+/// experiment from rest, is fitted on the database alone, the warm experiment choosing among
+/// its fits and weighing a correction of their gain.
 #[test]
 fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
     let dir = tempfile::tempdir().unwrap();
@@ -864,7 +865,16 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
         .iter()
         .find(|m| m["estimate"] == "S.spindle_elongation")
         .expect("an elongation model");
-    assert_eq!(elongation["selected_by"], "blocked_cv", "{elongation}");
+    assert_eq!(elongation["selected_by"], "experiments", "{elongation}");
+    let correction = &elongation["experiment_correction"];
+    assert!(
+        correction["n"].as_u64().is_some_and(|n| n > 1000),
+        "{elongation}"
+    );
+    assert!(
+        ["none", "gain"].contains(&correction["form"].as_str().unwrap()),
+        "{elongation}"
+    );
     // The heat models fit a warm experiment's start free; the straightness reads the
     // estimators' temperatures over it as they are.
     let heat_models = models.iter().filter(|m| {
@@ -898,7 +908,7 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
     assert!(
         warned[0].contains("fitted as a free start")
             && warned[0].contains("elongation")
-            && warned[0].contains("calibrated without this recording"),
+            && warned[0].contains("only chooses among those fits and corrects their gain"),
         "{err}"
     );
     let text = std::fs::read_to_string(&profile).unwrap();
