@@ -908,7 +908,7 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
     assert!(
         warned[0].contains("fitted as a free start")
             && warned[0].contains("elongation")
-            && warned[0].contains("only chooses among those fits and corrects their gain"),
+            && warned[0].contains("only chooses among those fits and weighs a correction"),
         "{err}"
     );
     let text = std::fs::read_to_string(&profile).unwrap();

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs, repeated};
 use anyhow::Context;
 use servosight::estimators::calibration::{
-    CalibrationReport, CorrectionForm, calibrate, warm_at_first_row,
+    CalibrationReport, CorrectionForm, ElongationExperiment, calibrate, warm_at_first_row,
+    warm_experiment_for_elongation,
 };
 use servosight::estimators::models::{AMBIENT_LAG_FEATURES, AMBIENT_LAG_TAUS_S};
 use servosight::profile::MachineProfile;
@@ -159,12 +160,10 @@ fn warn_of_weak_models(report: &CalibrationReport, database: &[Recording]) {
 
 /// A recording that starts on a warm machine: said on stderr, naming the recording and the
 /// axes. A database recording biases every heat model (they are accumulated from rest at its
-/// first row); an experiment's start is fitted free for the heat models, and for the spindle
-/// elongation, where no experiment from rest is given, it chooses among the database's fits
-/// and corrects their gain, its start fitted free.
+/// first row); an experiment's start is fitted free for the heat models, and the spindle
+/// elongation uses it as [`warm_experiment_for_elongation`] says.
 fn warn_of_warm_starts(database: &[Recording], experiments: &[Recording]) {
     let tagged = database.iter().map(|r| (r, true));
-    let any_from_rest = experiments.iter().any(|r| warm_at_first_row(r).is_empty());
     for (recording, in_database) in tagged.chain(experiments.iter().map(|r| (r, false))) {
         let warm = warm_at_first_row(recording);
         if warm.is_empty() {
@@ -174,26 +173,31 @@ fn warn_of_warm_starts(database: &[Recording], experiments: &[Recording]) {
             .iter()
             .map(|(axis, excess)| format!("{axis} stator {excess:.1} K above the room"))
             .collect();
-        let elongation = if any_from_rest {
-            "the spindle elongation, counted from the tool measurement, cannot tell that heat \
-             from its own slow heat and is calibrated without this recording, on the \
-             experiments from rest"
-        } else {
-            "the spindle elongation, counted from the tool measurement, cannot tell that heat \
-             from its own slow heat: it is fitted on the database alone, and this recording, \
-             its start fitted free, only chooses among those fits and corrects their gain; for \
-             it, give an experiment that starts after a long stop"
-        };
         let consequence = if in_database {
             "calibration accumulates the heat of every model from rest at a database \
              recording's first row, so the heat models are fitted to heat this recording does \
              not show; calibrate on recordings that start after a long stop"
                 .to_string()
         } else {
+            let elongation = match warm_experiment_for_elongation(recording, experiments) {
+                ElongationExperiment::LeftOut => {
+                    "; the spindle elongation, counted from the tool measurement, cannot tell that \
+                     heat from its own slow heat and is calibrated without this recording, on the \
+                     experiments from rest"
+                }
+                ElongationExperiment::ScoresAndGain => {
+                    "; the spindle elongation, counted from the tool measurement, cannot tell that \
+                     heat from its own slow heat: it is fitted on the database alone, and this \
+                     recording, its start fitted free, only chooses among those fits and weighs a \
+                     correction of their gain; for it, give an experiment that starts after a long \
+                     stop"
+                }
+                ElongationExperiment::NoReference | ElongationExperiment::FromRest => "",
+            };
             format!(
                 "the heat it held then is fitted as a free start (decays that are no term of \
                  the models) for the flange, bearing and nut models, and the straightness reads \
-                 the estimators' temperatures, which start warm as in service; {elongation}"
+                 the estimators' temperatures, which start warm as in service{elongation}"
             )
         };
         eprintln!(

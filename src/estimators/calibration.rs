@@ -281,13 +281,62 @@ pub struct CalibrationReport {
 /// warm machine. Calibration accumulates every heat term from rest at a recording's first row:
 /// a database recording that begins warm fits the heat models to heat it does not show. An
 /// experiment's start is fitted free for the flange, bearing and nut models, the straightness
-/// reads the estimators' own temperatures over it, and the spindle elongation is calibrated
-/// without it.
+/// reads the estimators' own temperatures over it, and the spindle elongation uses it as
+/// [`warm_experiment_for_elongation`] says.
 pub fn warm_at_first_row(recording: &Recording) -> Vec<(AxisId, f64)> {
     AxisId::ALL
         .into_iter()
         .filter_map(|axis| first_row_excess(recording, axis).map(|excess| (axis, excess)))
         .collect()
+}
+
+/// What calibration makes of an experiment for the spindle elongation, which counts from the
+/// tool measurement at the experiment's first row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ElongationExperiment {
+    /// It does not carry the elongation's reference.
+    NoReference,
+    /// It begins at rest and is used as any experiment is.
+    FromRest,
+    /// It begins warm, and an experiment from rest carries the reference: the elongation is
+    /// calibrated without this one.
+    LeftOut,
+    /// It begins warm, and no experiment from rest carries the reference: it chooses among the
+    /// database's fits and weighs a correction of their gain, its start fitted free
+    /// ([`WarmExperiment::ScoresOnly`]).
+    ScoresAndGain,
+}
+
+/// What calibration makes of `recording`, one of `experiments`, for the spindle elongation
+/// (the first elongation reference it carries).
+pub fn warm_experiment_for_elongation(
+    recording: &Recording,
+    experiments: &[Recording],
+) -> ElongationExperiment {
+    let Some(target) = recording
+        .names()
+        .iter()
+        .find(|name| name.starts_with("ref.") && name.ends_with(".elongation_um"))
+    else {
+        return ElongationExperiment::NoReference;
+    };
+    if !starts_warm(recording) {
+        ElongationExperiment::FromRest
+    } else if experiments.iter().any(|r| teaches_from_rest(r, target)) {
+        ElongationExperiment::LeftOut
+    } else {
+        ElongationExperiment::ScoresAndGain
+    }
+}
+
+/// Whether `recording` is an experiment from rest that carries `target` over enough rows to
+/// teach a model: where one does, an experiment that begins warm is not needed for a model
+/// that counts from its first row.
+fn teaches_from_rest(recording: &Recording, target: &str) -> bool {
+    !starts_warm(recording)
+        && recording
+            .try_column(target)
+            .is_some_and(|values| values.len() >= MIN_EXPERIMENT_ROWS)
 }
 
 /// `axis`'s stator excess over the room in the first row of `recording` where both are read,
@@ -683,8 +732,8 @@ enum WarmExperiment {
     /// Taken as it is: the model reads the estimators' outputs over the experiment, which
     /// start warm as they do in service (the straightness).
     AsItIs,
-    /// Left out: used for a model that counts from the tool measurement (the elongation) where
-    /// an experiment from rest carries its target, which teaches it better.
+    /// Left out: what [`WarmExperiment::ScoresOnly`] becomes where an experiment from rest
+    /// carries the target ([`teaches_from_rest`]), which teaches the model better.
     LeftOut,
     /// Scores only (the elongation where every experiment that carries its target begins
     /// warm): the warm experiments choose among the database's fits, each scored with the
@@ -722,7 +771,8 @@ type Candidates<'a> =
 /// cross-validation over the experiments. The database's response can differ from the real
 /// machine's in ways an offset or a gain cannot mend (the twin's DOE sweeps speeds, loads and
 /// coolant far from a production day's mix); then the joined fit predicts the held-out
-/// experiment blocks better and is chosen, and no correction follows it.
+/// experiment blocks better and is chosen, and no correction follows it. Warm experiments
+/// under [`WarmExperiment::ScoresOnly`] join no fit: they only score the database's.
 fn fit_best(
     estimate: &str,
     symbol: &str,
@@ -746,9 +796,7 @@ fn fit_best(
     let mut y_experiment = Vec::new();
     let mut experiment_starts = Vec::new();
     let mut with_target = Vec::new();
-    let any_from_rest = experiments
-        .iter()
-        .any(|r| r.try_column(target).is_some() && !starts_warm(r));
+    let any_from_rest = experiments.iter().any(|r| teaches_from_rest(r, target));
     let warm_experiment = match warm_experiment {
         WarmExperiment::ScoresOnly if any_from_rest => WarmExperiment::LeftOut,
         other => other,
@@ -780,6 +828,16 @@ fn fit_best(
         // estimate counts from that experiment's first row: each has its own level (the
         // first one's is the fit's constant).
         free_start.extend(level_columns(&experiment_starts, y_experiment.len()));
+        // Without a start to fit (an experiment shorter than the fastest decay, a degenerate
+        // fit), a change since the first row would be scored against a growth from cold: the
+        // experiments then score nothing, and the database's own blocks choose.
+        let has_decay = free_start
+            .iter()
+            .any(|(name, _)| !name.starts_with(LEVEL_TERM));
+        if !has_decay || fitted_start(&y_experiment, &free_start, true).is_none() {
+            y_experiment.clear();
+            free_start.clear();
+        }
     }
     let mut best: Option<(f64, Fitted)> = None;
     let mut last_error = None;
@@ -1121,6 +1179,10 @@ fn start_columns(experiments: &[&Recording], warm: &[bool], rows: usize) -> Colu
     columns
 }
 
+/// The prefix of the level of each stacked warm experiment after the first
+/// ([`level_columns`]), fitted beside the free start and never kept.
+const LEVEL_TERM: &str = "warm_start_level";
+
 /// One column per stacked recording after the first, 1 on its rows (`starts` are the
 /// recordings' first rows, `rows` the stacked length) and 0 elsewhere.
 fn level_columns(starts: &[usize], rows: usize) -> Columns {
@@ -1133,7 +1195,7 @@ fn level_columns(starts: &[usize], rows: usize) -> Columns {
         .map(|(index, (&start, end))| {
             let mut column = vec![0.0; rows];
             column[start..end].fill(1.0);
-            (format!("{START_TERM}#{index}_level"), column)
+            (format!("{LEVEL_TERM}#{index}"), column)
         })
         .collect()
 }
@@ -1999,7 +2061,10 @@ fn straightness_candidates(
 /// Lets the experiments correct the models of one stage: for every estimate the pipeline
 /// produces whose reference the experiments have, choose among no correction, an offset and a
 /// gain with an offset by time-blocked cross-validation over the experiments (each one's first
-/// and second half held out in turn), and fold the winner into the model.
+/// and second half held out in turn), and fold the winner into the model. An estimate counted
+/// from the first row (the elongation) reads warm experiments only where no experiment from
+/// rest teaches it ([`teaches_from_rest`]), with their start taken out
+/// ([`without_warm_start`]).
 fn apply_experiments(
     profile: &MachineProfile,
     calibration: &mut Calibration,
@@ -2028,6 +2093,9 @@ fn apply_experiments(
             // Its gain is read there only with that heat's decay fitted free, and only
             // where no experiment from rest reads it.
             if output.counts_from_first_row && warm {
+                if model_slot(&output.column, stage).is_none() {
+                    continue;
+                }
                 if let Some(pair) = without_warm_start(values, measured, recording) {
                     warm_pairs
                         .entry(output.column.clone())
@@ -2043,7 +2111,10 @@ fn apply_experiments(
         }
     }
     for (column, warm) in warm_pairs {
-        pairs.entry(column).or_insert(warm);
+        let from_rest = pairs.entry(column).or_default();
+        if from_rest.iter().all(|(p, _)| p.len() < MIN_EXPERIMENT_ROWS) {
+            *from_rest = warm;
+        }
     }
     for (column, per_experiment) in pairs {
         let Some((axis, slot)) = model_slot(&column, stage) else {
@@ -2093,8 +2164,9 @@ type PredictedMeasured = (Vec<f64>, Vec<f64>);
 /// reference with the warm start taken out: the reference is fitted on every row as a level,
 /// a gain on the estimate's change since the first row and the free start's decays
 /// ([`start_columns`]), and keeps what the gain and the estimate explain. The start is taken
-/// as known while the gain is held out, as the joined fit takes it. None when the
-/// experiment is too short or the fit degenerate.
+/// as known, fitted with the gain on every row, so the correction's held-out halves then ask
+/// whether that gain holds in both halves, and its RMSE before and after is against this
+/// reference. None when the experiment is too short or the fit degenerate.
 fn without_warm_start(
     predicted: &[f64],
     measured: &[f64],
@@ -2656,6 +2728,116 @@ mod tests {
             .sum::<f64>()
             / predicted.iter().map(|p| p * p).sum::<f64>();
         assert!(naive < 0.5 * 1.25, "{naive}");
+    }
+
+    /// Each stacked recording after the first has its own level column, 1 on its rows: the
+    /// first one's level is the fit's constant.
+    #[test]
+    fn each_stacked_recording_after_the_first_has_a_level_of_its_own() {
+        let levels = level_columns(&[0, 3, 5], 8);
+        let names: Vec<&str> = levels.iter().map(|(name, _)| name.as_str()).collect();
+        assert_eq!(
+            names,
+            [format!("{LEVEL_TERM}#1"), format!("{LEVEL_TERM}#2")]
+        );
+        assert_eq!(levels[0].1, [0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(levels[1].1, [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        assert!(level_columns(&[0], 8).is_empty());
+    }
+
+    /// Two experiments that begin warm, whose references count from cold each from its own
+    /// zero (the second's 3 K higher), choose among the database's fits of an estimate that
+    /// counts from each one's first row: the part's heat, not the room alone, scored well
+    /// above the room's with each start and level fitted free. They join no fit.
+    #[test]
+    fn warm_experiments_choose_among_the_databases_fits_each_from_its_own_level() {
+        let database = part_heat_recording(1.6, 8.0, 0.0, 1);
+        let shifted = |recording: Recording, by: f64| {
+            let part = recording.names().iter().position(|n| n == "part").unwrap();
+            let mut out = Recording::new("shifted", recording.names().to_vec()).unwrap();
+            let mut row = Vec::new();
+            for i in 0..recording.len() {
+                recording.row_into(i, &mut row);
+                row[part] += by;
+                out.push_row(&row).unwrap();
+            }
+            out
+        };
+        let experiments = [
+            part_heat_recording(1.6, 8.0, 7200.0, 2),
+            shifted(part_heat_recording(1.6, 9.0, 10800.0, 3), 3.0),
+        ];
+        assert!(experiments.iter().all(starts_warm));
+        let candidate = |names: &'static [&'static str]| {
+            move |r: &Recording| -> Result<Columns, CalibrationError> {
+                names
+                    .iter()
+                    .map(|&name| Ok((name.to_string(), r.column_for(name, "test")?.to_vec())))
+                    .collect()
+            }
+        };
+        let (heat, room) = (candidate(&["heat", AMBIENT]), candidate(&[AMBIENT]));
+        let fitted = fit_best(
+            "test",
+            "y",
+            std::slice::from_ref(&database),
+            &experiments,
+            "part",
+            &|_, _, r| Ok(vec![room(r)?, heat(r)?]),
+            ExperimentUse {
+                scoring: Scoring::FromFirstSample,
+                warm: WarmExperiment::ScoresOnly,
+            },
+        )
+        .unwrap();
+        assert_eq!(fitted.report.selected_by, "experiments");
+        assert_eq!(fitted.model.terms, ["const", "heat", AMBIENT]);
+        assert!(
+            fitted.report.selection_r2 > 0.99,
+            "{}",
+            fitted.report.selection_r2
+        );
+    }
+
+    /// A warm experiment is left out of the elongation only for an experiment from rest that
+    /// carries its reference over enough rows to teach it; a few rows from rest do not hide a
+    /// warm shift.
+    #[test]
+    fn a_warm_experiment_is_left_out_of_the_elongation_only_beside_one_from_rest_that_teaches() {
+        let target = reference_column(AxisId::S, "elongation_um", None);
+        let with_reference = |recording: Recording, rows: usize| {
+            let mut names = recording.names().to_vec();
+            names.push(target.clone());
+            let mut out = Recording::new("with reference", names).unwrap();
+            let mut row = Vec::new();
+            for i in 0..rows.min(recording.len()) {
+                recording.row_into(i, &mut row);
+                row.push(0.1 * i as f64);
+                out.push_row(&row).unwrap();
+            }
+            out
+        };
+        let warm = with_reference(part_heat_recording(2.0, 4.0, 7200.0, 2), usize::MAX);
+        let long_from_rest = with_reference(part_heat_recording(2.0, 1.0, 0.0, 3), usize::MAX);
+        let short_from_rest = with_reference(part_heat_recording(2.0, 1.0, 0.0, 3), 10);
+        let use_of = |others: &[Recording]| warm_experiment_for_elongation(&warm, others);
+        assert_eq!(
+            use_of(&[warm.clone(), long_from_rest.clone()]),
+            ElongationExperiment::LeftOut
+        );
+        assert_eq!(
+            use_of(&[warm.clone(), short_from_rest]),
+            ElongationExperiment::ScoresAndGain
+        );
+        assert_eq!(
+            warm_experiment_for_elongation(&long_from_rest, &[warm.clone()]),
+            ElongationExperiment::FromRest
+        );
+        let without = part_heat_recording(2.0, 1.0, 7200.0, 4);
+        assert_eq!(
+            warm_experiment_for_elongation(&without, &[warm]),
+            ElongationExperiment::NoReference
+        );
     }
 
     /// A bearing that the coolant cools through the bed has that read by its calibrated model,
