@@ -2830,7 +2830,7 @@ mod tests {
             ElongationExperiment::ScoresAndGain
         );
         assert_eq!(
-            warm_experiment_for_elongation(&long_from_rest, &[warm.clone()]),
+            warm_experiment_for_elongation(&long_from_rest, std::slice::from_ref(&warm)),
             ElongationExperiment::FromRest
         );
         let without = part_heat_recording(2.0, 1.0, 7200.0, 4);
