@@ -866,6 +866,13 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
         .find(|m| m["estimate"] == "S.spindle_elongation")
         .expect("an elongation model");
     assert_eq!(elongation["selected_by"], "experiments", "{elongation}");
+    assert!(
+        elongation["equation"]
+            .as_str()
+            .unwrap()
+            .contains("the start of those that begin warm fitted free in the score"),
+        "{elongation}"
+    );
     let correction = &elongation["experiment_correction"];
     assert!(
         correction["n"].as_u64().is_some_and(|n| n > 1000),
@@ -874,6 +881,16 @@ fn calibrate_fits_warm_starts_and_names_a_recording_that_starts_warm() {
     assert!(
         ["none", "gain"].contains(&correction["form"].as_str().unwrap()),
         "{elongation}"
+    );
+    assert_eq!(correction["warm_start_taken_out"], true, "{elongation}");
+    let front = models
+        .iter()
+        .find(|m| m["estimate"] == "X.front_bearing_temp")
+        .expect("a front bearing model");
+    assert!(
+        front["experiment_correction"].is_null()
+            || front["experiment_correction"]["warm_start_taken_out"] == false,
+        "{front}"
     );
     // The heat models fit a warm experiment's start free; the straightness reads the
     // estimators' temperatures over it as they are.

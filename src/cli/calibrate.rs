@@ -103,8 +103,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         format!("applied: {:+.4} + {:.4}·predicted", c.offset, c.gain)
                     }
                 };
+                let warm = if c.warm_start_taken_out {
+                    " (experiments that begin warm, their start taken out)"
+                } else {
+                    ""
+                };
                 outln!(
-                    "{:<34} experiments: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
+                    "{:<34} experiments{warm}: n = {}, held-out RMSE none {:.4} / offset {:.4} / gain {:.4} / gain+offset {:.4} (p = {:.3}); {}; RMSE {:.4} → {:.4}",
                     "",
                     c.n,
                     c.cv_rmse_none,

@@ -185,6 +185,11 @@ pub struct ExperimentCorrection {
     pub rmse_after: f64,
     /// Whether a correction was applied.
     pub applied: bool,
+    /// Whether it was weighed on experiments that begin warm with their start taken out
+    /// (an estimate counted from the first row, where no experiment from rest teaches it):
+    /// the start was fitted with the gain on every row, and the RMSEs above are against the
+    /// reference without it.
+    pub warm_start_taken_out: bool,
 }
 
 /// The corrections experiments can make to a database model.
@@ -908,6 +913,11 @@ fn fit_best(
                         *p += s;
                     }
                 }
+                fitted.report.equation = format!(
+                    "{} (fitted on the database; chosen on the experiments, the start of those \
+                     that begin warm fitted free in the score)",
+                    fitted.report.equation
+                );
             }
             fitted.report.selected_by = "experiments";
             r_squared(&y_experiment, &predicted)
@@ -2110,10 +2120,12 @@ fn apply_experiments(
                 .push((values.clone(), measured.to_vec()));
         }
     }
+    let mut warm_start_taken_out = BTreeSet::new();
     for (column, warm) in warm_pairs {
-        let from_rest = pairs.entry(column).or_default();
+        let from_rest = pairs.entry(column.clone()).or_default();
         if from_rest.iter().all(|(p, _)| p.len() < MIN_EXPERIMENT_ROWS) {
             *from_rest = warm;
+            warm_start_taken_out.insert(column);
         }
     }
     for (column, per_experiment) in pairs {
@@ -2131,7 +2143,8 @@ fn apply_experiments(
         if n < MIN_EXPERIMENT_ROWS {
             continue;
         }
-        let correction = choose_correction(&per_experiment, slot.zeroed_at_calibration());
+        let mut correction = choose_correction(&per_experiment, slot.zeroed_at_calibration());
+        correction.warm_start_taken_out = warm_start_taken_out.contains(&column);
         let (applied, offset, gain) = (correction.applied, correction.offset, correction.gain);
         if applied {
             let models = calibration.axes.entry(axis).or_default();
@@ -2279,6 +2292,7 @@ fn choose_correction(
         rmse_before: (corrected_sse(&predicted, &measured, (0.0, 1.0)) / rows).sqrt(),
         rmse_after: (corrected_sse(&predicted, &measured, (offset, gain)) / rows).sqrt(),
         applied,
+        warm_start_taken_out: false,
     }
 }
 
