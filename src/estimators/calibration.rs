@@ -886,9 +886,7 @@ fn fit_best(
             let columns = stack(&per_experiment, c);
             let mut predicted = predict(&fitted.model.coefficients, &columns, y_experiment.len());
             if scoring == Scoring::FromFirstSample {
-                let mut ends = experiment_starts[1..].to_vec();
-                ends.push(predicted.len());
-                for (&start, &end) in experiment_starts.iter().zip(&ends) {
+                for (start, end) in stacked_blocks(&experiment_starts, predicted.len()) {
                     let Some(&first) = predicted.get(start) else {
                         continue;
                     };
@@ -1196,18 +1194,22 @@ const LEVEL_TERM: &str = "warm_start_level";
 /// One column per stacked recording after the first, 1 on its rows (`starts` are the
 /// recordings' first rows, `rows` the stacked length) and 0 elsewhere.
 fn level_columns(starts: &[usize], rows: usize) -> Columns {
-    let ends = starts.iter().skip(1).copied().chain([rows]);
-    starts
-        .iter()
-        .zip(ends)
+    stacked_blocks(starts, rows)
         .enumerate()
         .skip(1)
-        .map(|(index, (&start, end))| {
+        .map(|(index, (start, end))| {
             let mut column = vec![0.0; rows];
             column[start..end].fill(1.0);
             (format!("{LEVEL_TERM}#{index}"), column)
         })
         .collect()
+}
+
+/// The rows of each stacked recording, (first, end), from the recordings' first rows
+/// `starts` and the stacked length `rows`.
+fn stacked_blocks(starts: &[usize], rows: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+    let ends = starts.iter().skip(1).copied().chain([rows]);
+    starts.iter().copied().zip(ends)
 }
 
 /// The name of experiment `index`'s free-start term at `tau_s`.
@@ -1225,15 +1227,25 @@ fn start_term_experiment(name: &str) -> Option<&str> {
 /// what it explains of each, beside an offset over all the rows (returned with it when
 /// `with_level`; otherwise the start is the decays alone). None when the fit is degenerate.
 fn fitted_start(residual: &[f64], free_start: &Columns, with_level: bool) -> Option<Vec<f64>> {
-    let design = Design::from_columns("residual", residual.to_vec(), free_start.clone()).ok()?;
-    let fit = ols(&design).ok()?;
-    let level = if with_level { fit.estimates()[0] } else { 0.0 };
-    Some(
-        start_of_rows(free_start, &fit.estimates()[1..], residual.len())
-            .into_iter()
-            .map(|s| s + level)
-            .collect(),
-    )
+    let (estimates, start) = fit_beside_start(residual, Vec::new(), free_start)?;
+    let level = if with_level { estimates[0] } else { 0.0 };
+    Some(start.into_iter().map(|s| s + level).collect())
+}
+
+/// Least squares of `y` on a constant, the `leading` columns and the free start
+/// ([`start_columns`]): the coefficients in that order, and what the free start explains of
+/// each row. None when the fit is degenerate.
+fn fit_beside_start(
+    y: &[f64],
+    leading: Columns,
+    free_start: &Columns,
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    let first_start = 1 + leading.len();
+    let columns = [leading, free_start.clone()].concat();
+    let design = Design::from_columns("y", y.to_vec(), columns).ok()?;
+    let estimates = ols(&design).ok()?.estimates().to_vec();
+    let start = start_of_rows(free_start, &estimates[first_start..], y.len());
+    Some((estimates, start))
 }
 
 /// Σ sₖ·startₖ for every row: what the free start with coefficients `s` (in its order; any
@@ -2191,15 +2203,8 @@ fn without_warm_start(
     if free_start.is_empty() {
         return None;
     }
-    let columns = [
-        vec![("estimate".to_string(), change.clone())],
-        free_start.clone(),
-    ]
-    .concat();
-    let design = Design::from_columns("reference", measured.to_vec(), columns).ok()?;
-    let fit = ols(&design).ok()?;
-    let estimates = fit.estimates();
-    let start = start_of_rows(&free_start, &estimates[2..], change.len());
+    let estimate = vec![("estimate".to_string(), change.clone())];
+    let (estimates, start) = fit_beside_start(measured, estimate, &free_start)?;
     let reference = measured
         .iter()
         .zip(&start)
