@@ -150,17 +150,14 @@ pub fn compensation_ui(
                 }
             });
         }
-        egui::Grid::new("proposal text")
-            .num_columns(2)
-            .spacing([8.0, 6.0])
-            .show(ui, |ui| {
-                labelled_text(ui, "Why", &mut forms.why, 420.0);
-                ui.end_row();
-                labelled_text(ui, "Evidence", &mut forms.evidence, 420.0);
-                ui.end_row();
-                labelled_text(ui, "Operator", &mut forms.operator, 200.0);
-                ui.end_row();
-            });
+        super::form_grid("proposal text", ui, |ui| {
+            labelled_text(ui, "Why", &mut forms.why, 420.0);
+            ui.end_row();
+            labelled_text(ui, "Evidence", &mut forms.evidence, 420.0);
+            ui.end_row();
+            labelled_text(ui, "Operator", &mut forms.operator, 200.0);
+            ui.end_row();
+        });
         ui.horizontal(|ui| {
             let enabled = view.request_blocked.is_none();
             if ui
@@ -293,25 +290,22 @@ pub fn compensation_ui(
             } else {
                 ui.weak(format!("Approvers: {}", approvers.join(", ")));
             }
-            egui::Grid::new("credential")
-                .num_columns(2)
-                .spacing([8.0, 6.0])
-                .show(ui, |ui| {
-                    labelled_text(ui, "Approver", &mut forms.approver, 200.0);
-                    ui.end_row();
-                    let label = ui.label("Password");
-                    let response = ui
-                        .add(
-                            egui::TextEdit::singleline(&mut forms.password)
-                                .password(true)
-                                .desired_width(200.0),
-                        )
-                        .labelled_by(label.id);
-                    if response.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
-                        commands.push(UiCommand::SubmitApproval);
-                    }
-                    ui.end_row();
-                });
+            super::form_grid("credential", ui, |ui| {
+                labelled_text(ui, "Approver", &mut forms.approver, 200.0);
+                ui.end_row();
+                let label = ui.label("Password");
+                let response = ui
+                    .add(
+                        egui::TextEdit::singleline(&mut forms.password)
+                            .password(true)
+                            .desired_width(200.0),
+                    )
+                    .labelled_by(label.id);
+                if response.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
+                    commands.push(UiCommand::SubmitApproval);
+                }
+                ui.end_row();
+            });
             if let Some(reason) = refusal {
                 ui.colored_label(
                     severity_color(Severity::Fault),

@@ -343,6 +343,18 @@ pub fn labelled_text(
         .labelled_by(label.id)
 }
 
+/// A form's fields: a label and its input per row, laid out alike in every panel.
+pub(super) fn form_grid<R>(
+    id: &str,
+    ui: &mut egui::Ui,
+    add_rows: impl FnOnce(&mut egui::Ui) -> R,
+) -> egui::InnerResponse<R> {
+    egui::Grid::new(id)
+        .num_columns(2)
+        .spacing([8.0, 6.0])
+        .show(ui, add_rows)
+}
+
 /// A job's progress bar with its Cancel button, or the start button.
 pub(super) fn job_row(
     ui: &mut egui::Ui,

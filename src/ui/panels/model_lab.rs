@@ -38,17 +38,14 @@ pub fn model_lab_ui(
         "Multiple regression with the F-test, R² and a sensitivity ranking, as \
          `servosight fit` computes it. Terms: a, a^2, a*b, lag(a,SECONDS), lowpass(a,TAU), delta(a).",
     );
-    egui::Grid::new("fit form")
-        .num_columns(2)
-        .spacing([8.0, 6.0])
-        .show(ui, |ui| {
-            labelled_text(ui, "Database (CSV v1)", &mut forms.fit_data, 420.0);
-            ui.end_row();
-            labelled_text(ui, "Target column", &mut forms.fit_target, 420.0);
-            ui.end_row();
-            labelled_text(ui, "Terms", &mut forms.fit_terms, 420.0);
-            ui.end_row();
-        });
+    super::form_grid("fit form", ui, |ui| {
+        labelled_text(ui, "Database (CSV v1)", &mut forms.fit_data, 420.0);
+        ui.end_row();
+        labelled_text(ui, "Target column", &mut forms.fit_target, 420.0);
+        ui.end_row();
+        labelled_text(ui, "Terms", &mut forms.fit_terms, 420.0);
+        ui.end_row();
+    });
     job_row(
         ui,
         view.running.as_ref(),
@@ -117,58 +114,55 @@ pub fn discrepancy_ui(
          named with fitted parameters, and the fit before and after (held out), as \
          `servosight discrepancy` computes it.",
     );
-    egui::Grid::new("discrepancy form")
-        .num_columns(2)
-        .spacing([8.0, 6.0])
-        .show(ui, |ui| {
-            labelled_text(ui, "Simulation (CSV v1)", &mut forms.disc_sim, 420.0);
-            ui.end_row();
-            labelled_text(ui, "Real recording (CSV v1)", &mut forms.disc_real, 420.0);
-            ui.end_row();
-            ui.label("");
-            ui.vertical(|ui| {
-                ui.checkbox(&mut forms.disc_real_this_file_only, "this file only")
-                    .on_hover_text(
-                        "otherwise the pieces the recorder continued it in (NAME-0001.csv, \
+    super::form_grid("discrepancy form", ui, |ui| {
+        labelled_text(ui, "Simulation (CSV v1)", &mut forms.disc_sim, 420.0);
+        ui.end_row();
+        labelled_text(ui, "Real recording (CSV v1)", &mut forms.disc_real, 420.0);
+        ui.end_row();
+        ui.label("");
+        ui.vertical(|ui| {
+            ui.checkbox(&mut forms.disc_real_this_file_only, "this file only")
+                .on_hover_text(
+                    "otherwise the pieces the recorder continued it in (NAME-0001.csv, \
                          NAME-0002.csv, … beside it) are read after it, as one recording",
-                    );
-                if let Some(pieces) = &view.real_pieces {
-                    ui.label(pieces);
-                }
-            });
-            ui.end_row();
-            let label = ui.label("Compared column");
-            ui.horizontal(|ui| {
-                ui.add(egui::TextEdit::singleline(&mut forms.disc_target).desired_width(300.0))
-                    .labelled_by(label.id);
-                egui::ComboBox::from_id_salt("shared columns")
-                    .selected_text(if view.shared_columns.is_empty() {
-                        "no shared columns yet".to_string()
-                    } else {
-                        format!("{} shared columns", view.shared_columns.len())
-                    })
-                    .show_ui(ui, |ui| {
-                        for column in &view.shared_columns {
-                            ui.selectable_value(&mut forms.disc_target, column.clone(), column);
-                        }
-                    });
-            });
-            ui.end_row();
-            let label = ui.label("Average over (s)");
-            ui.horizontal(|ui| {
-                ui.add(
-                    egui::TextEdit::singleline(&mut forms.disc_average_s)
-                        .hint_text("every row")
-                        .desired_width(80.0),
-                )
-                .labelled_by(label.id);
-                ui.label(
-                    "blank reads every row; a few seconds reads a long, fast recording \
-                     averaged over blocks of that length",
                 );
-            });
-            ui.end_row();
+            if let Some(pieces) = &view.real_pieces {
+                ui.label(pieces);
+            }
         });
+        ui.end_row();
+        let label = ui.label("Compared column");
+        ui.horizontal(|ui| {
+            ui.add(egui::TextEdit::singleline(&mut forms.disc_target).desired_width(300.0))
+                .labelled_by(label.id);
+            egui::ComboBox::from_id_salt("shared columns")
+                .selected_text(if view.shared_columns.is_empty() {
+                    "no shared columns yet".to_string()
+                } else {
+                    format!("{} shared columns", view.shared_columns.len())
+                })
+                .show_ui(ui, |ui| {
+                    for column in &view.shared_columns {
+                        ui.selectable_value(&mut forms.disc_target, column.clone(), column);
+                    }
+                });
+        });
+        ui.end_row();
+        let label = ui.label("Average over (s)");
+        ui.horizontal(|ui| {
+            ui.add(
+                egui::TextEdit::singleline(&mut forms.disc_average_s)
+                    .hint_text("every row")
+                    .desired_width(80.0),
+            )
+            .labelled_by(label.id);
+            ui.label(
+                "blank reads every row; a few seconds reads a long, fast recording \
+                     averaged over blocks of that length",
+            );
+        });
+        ui.end_row();
+    });
     if let Some(error) = &view.columns_error {
         ui.label(format!("cannot offer the shared columns: {error}"));
     }

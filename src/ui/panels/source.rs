@@ -51,16 +51,13 @@ pub fn source_ui(
                 "Another source runs in place of this one, on the same users and audit log; \
                  the readings, trends, checklist and depth of cut start afresh on it.",
             );
-            egui::Grid::new("source profile")
-                .num_columns(2)
-                .spacing([8.0, 6.0])
-                .show(ui, |ui| {
-                    labelled_text(ui, "Machine profile (TOML)", &mut forms.open_profile, 380.0);
-                    ui.end_row();
-                    ui.label("");
-                    ui.small(&view.profile_hint);
-                    ui.end_row();
-                });
+            super::form_grid("source profile", ui, |ui| {
+                labelled_text(ui, "Machine profile (TOML)", &mut forms.open_profile, 380.0);
+                ui.end_row();
+                ui.label("");
+                ui.small(&view.profile_hint);
+                ui.end_row();
+            });
             if let Some(warning) = &view.leaves_controller {
                 super::warning_line(ui, warning);
                 ui.checkbox(
@@ -77,18 +74,15 @@ pub fn source_ui(
                 "The pieces the recorder continued it in (NAME-0001.csv, … beside it) follow \
                  it. It is not recorded again.",
             );
-            egui::Grid::new("open recording form")
-                .num_columns(2)
-                .spacing([8.0, 6.0])
-                .show(ui, |ui| {
-                    labelled_text(ui, "Recording (CSV)", &mut forms.open_recording, 380.0);
-                    ui.end_row();
-                    ui.label("");
-                    ui.checkbox(&mut forms.open_this_file_only, "this file only");
-                    ui.end_row();
-                    labelled_text(ui, "Speed (× real time)", &mut forms.open_speed, 80.0);
-                    ui.end_row();
-                });
+            super::form_grid("open recording form", ui, |ui| {
+                labelled_text(ui, "Recording (CSV)", &mut forms.open_recording, 380.0);
+                ui.end_row();
+                ui.label("");
+                ui.checkbox(&mut forms.open_this_file_only, "this file only");
+                ui.end_row();
+                labelled_text(ui, "Speed (× real time)", &mut forms.open_speed, 80.0);
+                ui.end_row();
+            });
             change_button(ui, view, "Open", UiCommand::OpenRecording, commands);
             ui.add_space(4.0);
             ui.strong("A controller (Modbus RTU)");
@@ -98,24 +92,21 @@ pub fn source_ui(
                 view.controller_profile_hint,
                 crate::ui::source::ANSWER_WAIT.as_secs()
             ));
-            egui::Grid::new("connect controller form")
-                .num_columns(2)
-                .spacing([8.0, 6.0])
-                .show(ui, |ui| {
-                    labelled_text(ui, "Serial device", &mut forms.connect_device, 240.0);
-                    ui.end_row();
-                    labelled_text(ui, "Baud", &mut forms.connect_baud, 80.0);
-                    ui.end_row();
-                    labelled_text(
-                        ui,
-                        "Parity (none, even, odd)",
-                        &mut forms.connect_parity,
-                        80.0,
-                    );
-                    ui.end_row();
-                    labelled_text(ui, "Slave id", &mut forms.connect_slave, 80.0);
-                    ui.end_row();
-                });
+            super::form_grid("connect controller form", ui, |ui| {
+                labelled_text(ui, "Serial device", &mut forms.connect_device, 240.0);
+                ui.end_row();
+                labelled_text(ui, "Baud", &mut forms.connect_baud, 80.0);
+                ui.end_row();
+                labelled_text(
+                    ui,
+                    "Parity (none, even, odd)",
+                    &mut forms.connect_parity,
+                    80.0,
+                );
+                ui.end_row();
+                labelled_text(ui, "Slave id", &mut forms.connect_slave, 80.0);
+                ui.end_row();
+            });
             change_button(ui, view, "Connect", UiCommand::ConnectController, commands);
             if let Some(progress) = &view.running {
                 ui.separator();
