@@ -1227,11 +1227,24 @@ fn best_per_kind(
 /// Kinds tried as the first of a masked pair: the best few of a step.
 const MASKED_PAIR_CANDIDATES: usize = 4;
 
-/// Two corrections whose fitted contributions correlate below this cancel each other: one
-/// fits what the other overshoots, and two such slow corrections fit slow noise together
-/// (−0.97 in a negative control with hour-long correlated noise; masking effects: −0.19 to
-/// −0.50).
-const MASKED_PAIR_CANCELLING_CORRELATION: f64 = -0.8;
+/// Two corrections whose fitted contributions correlate below this oppose each other: one may
+/// fit what the other overshoots, and two such slow corrections fit slow noise together
+/// (−0.97 and −0.995 in negative controls with hour-long correlated noise; masking effects:
+/// −0.19 to −0.50). Such a pair is still two effects when they are built from different
+/// signals and do not cancel ([`MASKED_PAIR_CANCELLING_SHARE`]).
+const MASKED_PAIR_OPPOSING_CORRELATION: f64 = -0.8;
+
+/// Two opposing corrections cancel each other when their fitted contributions add up to less
+/// than this share of the larger one (each taken from its mean, compared by RMS). In the
+/// negative control at −0.995 the pair summed to 0.11 of the larger. Opposing corrections
+/// built from different signals are what those signals did when they sum to more: a
+/// thermometer drifting down while the room warms a nut (the independent check's seed 2, room
+/// and drift at 14 and 33 σ: correlated −0.90, summed to 0.50 of the larger), which the
+/// correlation alone refused until 2026-11-30 and the report called `consistent`. Built from
+/// one signal (iron loss and a changed convection, both from the speed, −0.84 and 0.54 on the
+/// independent check's growth, where neither was left out), they are one response split in
+/// two opposite parts, and stay refused.
+const MASKED_PAIR_CANCELLING_SHARE: f64 = 0.3;
 
 /// Two effects concealed at once, both slow and large, can mask each other: each alone leaves
 /// the other's large error, so neither explains the share of the held-out error that would
@@ -1239,7 +1252,7 @@ const MASKED_PAIR_CANCELLING_CORRELATION: f64 = -0.8;
 /// as large). A pair is admitted when each member explains at least `dominant_gain` of the
 /// held-out error the other leaves — the test a single dominant effect passes, passed by each
 /// given the other — both are grid members of kinds not chosen yet, and they do not cancel
-/// (see [`MASKED_PAIR_CANCELLING_CORRELATION`]). Tried only when the
+/// (see [`MASKED_PAIR_OPPOSING_CORRELATION`]). Tried only when the
 /// step's best member alone explains at least half of the held-out error
 /// ([`GROSS_MISMATCH_GAIN`]; noise that its surrogates match does not). Judged in the data as they are (`raw`, the
 /// gains of the step's first view); returns the member to admit first (the larger gain alone)
@@ -1287,8 +1300,8 @@ fn masked_pair(
         if first_given_partner < options.dominant_gain {
             return None;
         }
-        if contributions_correlation(problem, raw, first, partner)
-            .is_none_or(|r| r < MASKED_PAIR_CANCELLING_CORRELATION)
+        if pair_contributions(problem, raw, first, partner)
+            .is_none_or(|pair| pair.cancel(shares_a_signal(problem, first, partner)))
         {
             return None;
         }
@@ -1310,14 +1323,14 @@ fn masked_pair(
     best.map(|(pair, _)| pair)
 }
 
-/// The correlation of two members' fitted contributions when both are fitted on top of the
-/// base (data as they are): near −1 when they cancel, one fitting what the other overshoots.
-fn contributions_correlation(
+/// How two members' fitted contributions, both fitted on top of the base (data as they are),
+/// relate ([`PairContributions`]).
+fn pair_contributions(
     problem: &Problem<'_>,
     raw: &ViewStep<'_>,
     a: usize,
     b: usize,
-) -> Option<f64> {
+) -> Option<PairContributions> {
     let view = raw.view;
     let mut columns: Vec<&[f64]> = raw.base.iter().map(|c| c.as_slice()).collect();
     let a_columns = problem.members[a].columns.clone();
@@ -1333,16 +1346,52 @@ fn contributions_correlation(
             .map(|i| (start..start + len).map(|k| columns[k][i] * beta[k]).sum())
             .collect()
     };
-    let pa = part(a_start, a_columns.len());
-    let pb = part(b_start, b_columns.len());
-    let (ma, mb) = (mean(&pa), mean(&pb));
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in pa.iter().zip(&pb) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma) * (x - ma);
-        sbb += (y - mb) * (y - mb);
+    PairContributions::of(
+        &part(a_start, a_columns.len()),
+        &part(b_start, b_columns.len()),
+    )
+}
+
+/// How two corrections' fitted contributions over the same rows relate.
+#[derive(Debug, Clone, Copy)]
+struct PairContributions {
+    /// Their correlation: near −1 when they oppose, one fitting what the other overshoots.
+    correlation: f64,
+    /// The RMS of their sum over the larger one's RMS, each taken from its mean: near 0 when
+    /// they cancel; at least √(1 − r²) for a correlation r.
+    summed_share: f64,
+}
+
+impl PairContributions {
+    /// Of contributions `a` and `b`; `None` when either is constant.
+    fn of(a: &[f64], b: &[f64]) -> Option<Self> {
+        let (ma, mb) = (mean(a), mean(b));
+        let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+        for (x, y) in a.iter().zip(b) {
+            let (x, y) = (x - ma, y - mb);
+            sab += x * y;
+            saa += x * x;
+            sbb += y * y;
+        }
+        (saa > 0.0 && sbb > 0.0).then(|| PairContributions {
+            correlation: sab / (saa * sbb).sqrt(),
+            summed_share: ((saa + sbb + 2.0 * sab) / saa.max(sbb)).max(0.0).sqrt(),
+        })
     }
-    (saa > 0.0 && sbb > 0.0).then(|| sab / (saa * sbb).sqrt())
+
+    /// Whether the two cancel each other rather than stand for two effects: they oppose
+    /// ([`MASKED_PAIR_OPPOSING_CORRELATION`]) and are built from a signal in common
+    /// (`share_a_signal`) or sum to little ([`MASKED_PAIR_CANCELLING_SHARE`]).
+    fn cancel(&self, share_a_signal: bool) -> bool {
+        self.correlation < MASKED_PAIR_OPPOSING_CORRELATION
+            && (share_a_signal || self.summed_share < MASKED_PAIR_CANCELLING_SHARE)
+    }
+}
+
+/// Whether two members are built from a signal in common.
+fn shares_a_signal(problem: &Problem<'_>, a: usize, b: usize) -> bool {
+    let signals = |m: usize| &problem.families[problem.members[m].family].signals;
+    signals(a).iter().any(|s| signals(b).contains(s))
 }
 
 /// Two members that mask each other (see [`masked_pair`]).
@@ -1617,5 +1666,58 @@ mod tests {
                 needed
             );
         }
+    }
+
+    /// Two corrections that mirror each other cancel; opposing ones built from different
+    /// signals stand for two effects while their sum keeps a large share of the larger, as a
+    /// thermometer drifting down while the room warms its part does (the independent check's
+    /// nut: correlated −0.90, sum 0.50 of the larger), and cancel when it keeps little (a
+    /// negative control under hour-long correlated noise: −0.995, 0.11). Built from a signal in
+    /// common, opposing corrections are one response split in two and cancel whatever is left.
+    #[test]
+    fn opposing_corrections_cancel_unless_built_from_different_signals_and_summing_to_much() {
+        let n = 600;
+        let ramp: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
+        let wave: Vec<f64> = (0..n).map(|i| (i as f64 * 0.05).sin()).collect();
+        let mirrored: Vec<f64> = ramp.iter().map(|r| -r).collect();
+        let pair = PairContributions::of(&ramp, &mirrored).expect("both vary");
+        assert!((pair.correlation + 1.0).abs() < 1e-12, "{pair:?}");
+        assert!(pair.summed_share < 1e-6, "{pair:?}");
+        assert!(pair.cancel(false) && pair.cancel(true));
+
+        // Twice the ramp against it, with a little wave: opposed (r ≈ −0.99), summing to
+        // about half the larger.
+        let against: Vec<f64> = ramp
+            .iter()
+            .zip(&wave)
+            .map(|(r, w)| -2.0 * r + 0.05 * w)
+            .collect();
+        let pair = PairContributions::of(&ramp, &against).expect("both vary");
+        assert!(
+            pair.correlation < MASKED_PAIR_OPPOSING_CORRELATION,
+            "{pair:?}"
+        );
+        assert!((0.45..0.55).contains(&pair.summed_share), "{pair:?}");
+        assert!(!pair.cancel(false), "different signals: two effects");
+        assert!(pair.cancel(true), "one signal: one response split in two");
+
+        // The same pair at 1.1 × against the ramp sums to a tenth: it cancels either way.
+        let nearly: Vec<f64> = ramp
+            .iter()
+            .zip(&wave)
+            .map(|(r, w)| -1.1 * r + 0.01 * w)
+            .collect();
+        let pair = PairContributions::of(&ramp, &nearly).expect("both vary");
+        assert!(pair.summed_share < MASKED_PAIR_CANCELLING_SHARE, "{pair:?}");
+        assert!(pair.cancel(false));
+
+        // Not opposed: never cancelling, even from one signal.
+        let pair = PairContributions::of(&ramp, &wave).expect("both vary");
+        assert!(
+            pair.correlation > MASKED_PAIR_OPPOSING_CORRELATION,
+            "{pair:?}"
+        );
+        assert!(!pair.cancel(true));
+        assert!(PairContributions::of(&ramp, &vec![1.0; n]).is_none());
     }
 }
