@@ -1229,14 +1229,15 @@ const MASKED_PAIR_CANDIDATES: usize = 4;
 
 /// Two corrections whose fitted contributions correlate below this oppose each other: one may
 /// fit what the other overshoots, and two such slow corrections fit slow noise together
-/// (−0.97 and −0.995 in negative controls with hour-long correlated noise; masking effects:
-/// −0.19 to −0.50). Such a pair is still two effects when they are built from different
+/// (−0.97 in a negative control with hour-long correlated noise when this was set, −0.995 in
+/// another on 2026-11-30; masking effects: −0.19 to −0.50). Such a pair is still two effects when they are built from different
 /// signals and do not cancel ([`MASKED_PAIR_CANCELLING_SHARE`]).
 const MASKED_PAIR_OPPOSING_CORRELATION: f64 = -0.8;
 
 /// Two opposing corrections cancel each other when their fitted contributions add up to less
 /// than this share of the larger one (each taken from its mean, compared by RMS). In the
-/// negative control at −0.995 the pair summed to 0.11 of the larger. Opposing corrections
+/// negative control at −0.995 the pair summed to 0.11 of the larger; the share can only fall
+/// below 0.3 for a correlation below −0.954. Opposing corrections
 /// built from different signals are what those signals did when they sum to more: a
 /// thermometer drifting down while the room warms a nut (the independent check's seed 2, room
 /// and drift at 14 and 33 σ: correlated −0.90, summed to 0.50 of the larger), which the
@@ -1388,10 +1389,16 @@ impl PairContributions {
     }
 }
 
-/// Whether two members are built from a signal in common.
+/// Whether two members are built from a signal in common: the signals each member uses, not
+/// those of a refinement of its family that it does not use (the coolant a room's faster
+/// lags read is listed beside every lag of the room).
 fn shares_a_signal(problem: &Problem<'_>, a: usize, b: usize) -> bool {
-    let signals = |m: usize| &problem.families[problem.members[m].family].signals;
-    signals(a).iter().any(|s| signals(b).contains(s))
+    let signals = |m: usize| {
+        let member = &problem.members[m];
+        problem.families[member.family].member_signals(&member.theta)
+    };
+    let of_b = signals(b);
+    signals(a).iter().any(|s| of_b.contains(s))
 }
 
 /// Two members that mask each other (see [`masked_pair`]).
@@ -1701,7 +1708,8 @@ mod tests {
         assert!(!pair.cancel(false), "different signals: two effects");
         assert!(pair.cancel(true), "one signal: one response split in two");
 
-        // The same pair at 1.1 × against the ramp sums to a tenth: it cancels either way.
+        // 1.1 × the ramp against it, with less of the wave, sums to a tenth: it cancels either
+        // way.
         let nearly: Vec<f64> = ramp
             .iter()
             .zip(&wave)
@@ -1710,6 +1718,19 @@ mod tests {
         let pair = PairContributions::of(&ramp, &nearly).expect("both vary");
         assert!(pair.summed_share < MASKED_PAIR_CANCELLING_SHARE, "{pair:?}");
         assert!(pair.cancel(false));
+
+        // 1.5 × the ramp against it with more of the wave, as the room and a drifting
+        // thermometer (r ≈ −0.91, half the larger): opposed, yet two effects from different
+        // signals.
+        let room_like: Vec<f64> = ramp
+            .iter()
+            .zip(&wave)
+            .map(|(r, w)| -1.5 * r + 0.3 * w)
+            .collect();
+        let pair = PairContributions::of(&ramp, &room_like).expect("both vary");
+        assert!((-0.93..-0.88).contains(&pair.correlation), "{pair:?}");
+        assert!((0.5..0.57).contains(&pair.summed_share), "{pair:?}");
+        assert!(!pair.cancel(false) && pair.cancel(true));
 
         // Not opposed: never cancelling, even from one signal.
         let pair = PairContributions::of(&ramp, &wave).expect("both vary");
