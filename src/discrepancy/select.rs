@@ -1686,20 +1686,23 @@ mod tests {
         let n = 600;
         let ramp: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
         let wave: Vec<f64> = (0..n).map(|i| (i as f64 * 0.05).sin()).collect();
-        let mirrored: Vec<f64> = ramp.iter().map(|r| -r).collect();
-        let pair = PairContributions::of(&ramp, &mirrored).expect("both vary");
+        // `k` × the ramp against it, with `w` × the wave.
+        let against = |k: f64, w: f64| -> PairContributions {
+            let other: Vec<f64> = ramp
+                .iter()
+                .zip(&wave)
+                .map(|(r, x)| -k * r + w * x)
+                .collect();
+            PairContributions::of(&ramp, &other).expect("both vary")
+        };
+        let pair = against(1.0, 0.0);
         assert!((pair.correlation + 1.0).abs() < 1e-12, "{pair:?}");
         assert!(pair.summed_share < 1e-6, "{pair:?}");
         assert!(pair.cancel(false) && pair.cancel(true));
 
         // Twice the ramp against it, with a little wave: opposed (r ≈ −0.99), summing to
         // about half the larger.
-        let against: Vec<f64> = ramp
-            .iter()
-            .zip(&wave)
-            .map(|(r, w)| -2.0 * r + 0.05 * w)
-            .collect();
-        let pair = PairContributions::of(&ramp, &against).expect("both vary");
+        let pair = against(2.0, 0.05);
         assert!(
             pair.correlation < MASKED_PAIR_OPPOSING_CORRELATION,
             "{pair:?}"
@@ -1710,24 +1713,14 @@ mod tests {
 
         // 1.1 × the ramp against it, with less of the wave, sums to a tenth: it cancels either
         // way.
-        let nearly: Vec<f64> = ramp
-            .iter()
-            .zip(&wave)
-            .map(|(r, w)| -1.1 * r + 0.01 * w)
-            .collect();
-        let pair = PairContributions::of(&ramp, &nearly).expect("both vary");
+        let pair = against(1.1, 0.01);
         assert!(pair.summed_share < MASKED_PAIR_CANCELLING_SHARE, "{pair:?}");
         assert!(pair.cancel(false));
 
         // 1.5 × the ramp against it with more of the wave, as the room and a drifting
         // thermometer (r ≈ −0.91, half the larger): opposed, yet two effects from different
         // signals.
-        let room_like: Vec<f64> = ramp
-            .iter()
-            .zip(&wave)
-            .map(|(r, w)| -1.5 * r + 0.3 * w)
-            .collect();
-        let pair = PairContributions::of(&ramp, &room_like).expect("both vary");
+        let pair = against(1.5, 0.3);
         assert!((-0.93..-0.88).contains(&pair.correlation), "{pair:?}");
         assert!((0.5..0.57).contains(&pair.summed_share), "{pair:?}");
         assert!(!pair.cancel(false) && pair.cancel(true));
