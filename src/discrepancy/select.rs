@@ -1230,18 +1230,18 @@ const MASKED_PAIR_CANDIDATES: usize = 4;
 /// Two corrections whose fitted contributions correlate below this oppose each other: one may
 /// fit what the other overshoots, and two such slow corrections fit slow noise together
 /// (−0.97 in a negative control with hour-long correlated noise when this was set, −0.995 in
-/// another on 2026-11-30; masking effects: −0.19 to −0.50). Such a pair is still two effects when they are built from different
-/// signals and do not cancel ([`MASKED_PAIR_CANCELLING_SHARE`]).
+/// another on 2026-11-30; masking effects: −0.19 to −0.50). Such a pair is still two effects
+/// when they are built from different signals and do not cancel
+/// ([`MASKED_PAIR_CANCELLING_SHARE`]).
 const MASKED_PAIR_OPPOSING_CORRELATION: f64 = -0.8;
 
 /// Two opposing corrections cancel each other when their fitted contributions add up to less
 /// than this share of the larger one (each taken from its mean, compared by RMS). In the
 /// negative control at −0.995 the pair summed to 0.11 of the larger; the share can only fall
-/// below 0.3 for a correlation below −0.954. Opposing corrections
-/// built from different signals are what those signals did when they sum to more: a
-/// thermometer drifting down while the room warms a nut (the independent check's seed 2, room
-/// and drift at 14 and 33 σ: correlated −0.90, summed to 0.50 of the larger), which the
-/// correlation alone refused until 2026-11-30 and the report called `consistent`. Built from
+/// below 0.3 for a correlation below −0.954. Opposing corrections built from different
+/// signals are what those signals did when they sum to more: a thermometer drifting down
+/// while the room warms a nut (the independent check's seed 2, room and drift at 14 and
+/// 33 σ: correlated −0.90, summed to 0.50 of the larger), which the correlation alone refused until 2026-11-30 and the report called `consistent`. Built from
 /// one signal (iron loss and a changed convection, both from the speed, −0.84 and 0.54 on the
 /// independent check's growth, where neither was left out), they are one response split in
 /// two opposite parts, and stay refused.
