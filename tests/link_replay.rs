@@ -824,3 +824,42 @@ fn an_hmi_replay_of_one_piece_says_which_later_pieces_it_leaves_out() {
         "{events:?}"
     );
 }
+
+/// A session ended at once, before anything it sent was read, still names the file its
+/// recorder opened: a source change cancelled that early removes its attempt's empty
+/// recording by that name (an HMI test once found the file left beside the twin's own when
+/// the cancel came before the session's first recorder report). Without a recording
+/// directory it names none.
+#[test]
+fn a_session_ended_before_it_reported_names_the_file_it_recorded_into() {
+    use servosight::ui::SourceSpec;
+    let dir = tempfile::tempdir().unwrap();
+    let record_dir = dir.path().join("recordings");
+    let twin = || SourceSpec::Twin {
+        config: Box::new(servosight::sim::TwinConfig::new(
+            servosight::sim::ScenarioKind::Production,
+            None,
+            7,
+        )),
+        speed: ReplaySpeed::Factor(1.0),
+    };
+    let session = servosight::ui::Session::start(servosight::ui::SessionConfig {
+        source: twin(),
+        record_dir: Some(record_dir.clone()),
+        users_path: dir.path().join("users.toml"),
+        audit_path: dir.path().join("audit.jsonl"),
+        limits: servosight::compensation::CompensationLimits::default(),
+        profile: Some(twin_profile()),
+        data_dir: dir.path().join("data"),
+    })
+    .expect("session starts");
+    let named = session.end().expect("the recorder opened a file");
+    let on_disk: Vec<_> = std::fs::read_dir(&record_dir)
+        .expect("the recording directory")
+        .map(|e| e.expect("an entry").path())
+        .collect();
+    assert_eq!(on_disk, vec![named]);
+
+    let unrecorded = twin_profile_session(dir.path(), twin());
+    assert_eq!(unrecorded.end(), None);
+}

@@ -10,6 +10,7 @@
 //! seconds at 1 kHz), so nothing is lost.
 
 use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use tokio::sync::mpsc;
@@ -254,6 +255,8 @@ pub struct Session {
     commands: mpsc::Sender<SessionCommand>,
     updates: mpsc::Receiver<SessionUpdate>,
     thread: Option<std::thread::JoinHandle<()>>,
+    /// The first file its recorder opened, set by the worker as it opens it.
+    first_recording: Arc<OnceLock<PathBuf>>,
 }
 
 /// Messages queued from the session to the UI before it has to hold frames back.
@@ -325,9 +328,11 @@ impl Session {
             .enable_time()
             .build()
             .map_err(SessionError::Thread)?;
+        let first_recording = Arc::new(OnceLock::new());
         let mut worker = Worker {
             link,
             recorder: None,
+            first_recording: Arc::clone(&first_recording),
             recorder_snapshot: RecorderSnapshot::off(),
             record_dir: config.record_dir.clone(),
             audit: None,
@@ -384,6 +389,7 @@ impl Session {
             commands: command_tx,
             updates: update_rx,
             thread: Some(thread),
+            first_recording,
         })
     }
 
@@ -429,6 +435,15 @@ impl Session {
     pub fn try_recv(&mut self) -> Option<SessionUpdate> {
         self.updates.try_recv().ok()
     }
+
+    /// Ends the session as dropping it does (its recorder file finished) and says which file
+    /// its recorder opened first, if it opened one: known even when the session ends before
+    /// it reported its recorder.
+    pub fn end(self) -> Option<PathBuf> {
+        let first = Arc::clone(&self.first_recording);
+        drop(self);
+        first.get().cloned()
+    }
 }
 
 impl Drop for Session {
@@ -454,6 +469,8 @@ enum Wake {
 struct Worker {
     link: ControllerLink,
     recorder: Option<Recorder>,
+    /// Shared with the [`Session`] ([`Session::end`]).
+    first_recording: Arc<OnceLock<PathBuf>>,
     recorder_snapshot: RecorderSnapshot,
     record_dir: Option<PathBuf>,
     audit: Option<AuditLog>,
@@ -805,6 +822,7 @@ impl Worker {
         match Recorder::create(config, self.link.schema(), self.link.has_sequence()) {
             Ok(recorder) => {
                 self.recorder = Some(recorder);
+                let _ = self.first_recording.set(path.clone());
                 self.recorder_snapshot = RecorderSnapshot {
                     state: RecorderState::Recording,
                     path: Some(path.display().to_string()),

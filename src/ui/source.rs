@@ -247,17 +247,17 @@ pub(crate) fn run_switch(
             context.progress("waiting for the controller to answer", Some(0.9));
             match wait_for_an_answer(&mut session, context) {
                 Ok(updates) => early_updates = updates,
-                Err(silent) => {
+                Err(stop) => {
                     // Its recorder file is finished first; read again, one without a row is
                     // only this attempt's header, and goes (a row that came at the last
-                    // moment keeps it).
-                    drop(session);
-                    if let Some(path) = silent.empty_recording
+                    // moment keeps it). The session names it even when the change was
+                    // cancelled before the session reported its recorder.
+                    if let Some(path) = session.end()
                         && has_no_row(&path)
                     {
                         let _ = std::fs::remove_file(path);
                     }
-                    return Err(silent.stop);
+                    return Err(stop);
                 }
             }
             format!(
@@ -289,32 +289,18 @@ fn has_no_row(path: &std::path::Path) -> bool {
         .is_ok_and(|more| !more)
 }
 
-/// A controller that did not answer (or a wait that was cancelled).
-struct Silent {
-    /// Why the change stops.
-    stop: JobStop,
-    /// The session's recording, when it had no row at its last report.
-    empty_recording: Option<PathBuf>,
-}
-
 /// Waits (at most [`ANSWER_WAIT`]) for a controller's first fresh sample, keeping what the
 /// session says meanwhile. A line on which nothing answers (a wrong device, baud rate,
 /// parity or slave id) fails the change, so the source that was running stays.
 fn wait_for_an_answer(
     session: &mut Session,
     context: &JobContext<Switched>,
-) -> Result<Vec<SessionUpdate>, Silent> {
+) -> Result<Vec<SessionUpdate>, JobStop> {
     let deadline = std::time::Instant::now() + ANSWER_WAIT;
     let mut updates = Vec::new();
     let mut last_error = None;
-    let mut empty_recording = None;
     while std::time::Instant::now() < deadline {
-        if let Err(stop) = context.check() {
-            return Err(Silent {
-                stop,
-                empty_recording,
-            });
-        }
+        context.check()?;
         while let Some(update) = session.try_recv() {
             match &update {
                 SessionUpdate::Link(link) if link.state == ConnectionState::Connected => {
@@ -322,13 +308,6 @@ fn wait_for_an_answer(
                     return Ok(updates);
                 }
                 SessionUpdate::Link(link) => last_error.clone_from(&link.last_error),
-                SessionUpdate::Recorder(recorder) => {
-                    empty_recording = recorder
-                        .path
-                        .as_ref()
-                        .filter(|_| recorder.rows == 0)
-                        .map(PathBuf::from);
-                }
                 _ => {}
             }
             updates.push(update);
@@ -342,16 +321,13 @@ fn wait_for_an_answer(
         ),
         _ => String::new(),
     };
-    Err(Silent {
-        stop: JobStop::Failed(format!(
-            "nothing answered on {} ({line}) within {} s{}: check the device and the line \
-             settings",
-            session.source(),
-            ANSWER_WAIT.as_secs(),
-            last_error.map_or(String::new(), |e| format!(" (last error: {e})"))
-        )),
-        empty_recording,
-    })
+    Err(JobStop::Failed(format!(
+        "nothing answered on {} ({line}) within {} s{}: check the device and the line \
+         settings",
+        session.source(),
+        ANSWER_WAIT.as_secs(),
+        last_error.map_or(String::new(), |e| format!(" (last error: {e})"))
+    )))
 }
 
 /// What a change starts, for its summary.
