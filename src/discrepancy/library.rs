@@ -1303,6 +1303,18 @@ impl Site {
     }
 }
 
+/// The simpler kind whose corrections `kind`'s nest, and the member of it they reduce to:
+/// a friction profile along the stroke holds Coulomb friction as its flat part (P₀, the
+/// direction alone).
+pub fn nested_simpler(kind: Kind) -> Option<(Kind, &'static [f64])> {
+    match kind {
+        Kind::Physics(Physics::PositionDependent) => {
+            Some((Kind::Physics(Physics::CoulombReversal), &[0.0]))
+        }
+        _ => None,
+    }
+}
+
 /// A friction force opposing the motion `d` adds to a magnitude (a current) while the drive
 /// pushes the way the axis moves, and takes from it while the drive brakes: its sign there is
 /// the measured torque's relative to the motion (with no torque column, the drive is taken to

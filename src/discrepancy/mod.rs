@@ -810,7 +810,7 @@ fn analyse_with(
         fixed,
         refinable: Vec::new(),
     };
-    let steps = stepwise(
+    let mut steps = stepwise(
         &Problem {
             y: &y_binned,
             views: &views,
@@ -867,6 +867,7 @@ fn analyse_with(
             joint = refined;
         }
     }
+    joint.simpler_where_nested(&mut steps, &members, options.distinguish_t);
     watch.report(REFIT_AT, || "refitting on all rows".into())?;
     let full_blocks = Blocks::new(n, options.folds, options.blocks_per_fold);
     let real_mean = mean(recorded_target);
@@ -1595,6 +1596,80 @@ impl Joint<'_> {
             .iter()
             .zip(&self.active)
             .any(|((f, _), a)| *a && self.families[*f].state)
+    }
+
+    /// Occam asked once more, beside every correction the selection named: a correction of a
+    /// kind that nests a simpler one ([`library::nested_simpler`]) gives way to the simpler
+    /// one when the model with it predicts the held-out blocks no significantly worse (the
+    /// paired test of the selection's own Occam rule, `distinguish_t`). At the step that named
+    /// it the model lacked what came later: on the independent check's seed 1 a friction
+    /// profile along the stroke took a 0.32 A Coulomb step on a current recorded 33 s late
+    /// together with part of the delay's error at the reversals (held out 0.630 against the
+    /// flat step's 0.601), and once the delay was in, its shape along the stroke added
+    /// nothing. The step then reports the simpler kind, the nesting one first among those the
+    /// data cannot tell from it.
+    fn simpler_where_nested(&mut self, steps: &mut [Step], members: &[Member], distinguish_t: f64) {
+        for k in 0..self.accepted.len() {
+            if !self.active[k] || self.watch.stopped() {
+                continue;
+            }
+            let nesting = &self.families[self.accepted[k].0];
+            let Some((kind, theta)) = library::nested_simpler(nesting.kind) else {
+                continue;
+            };
+            let in_model = self
+                .accepted
+                .iter()
+                .zip(&self.active)
+                .any(|((f, _), active)| *active && self.families[*f].kind == kind);
+            let simpler = self
+                .families
+                .iter()
+                .position(|f| f.kind == kind && f.axis == nesting.axis && !f.lagged);
+            let Some((simpler, member)) = simpler.filter(|_| !in_model).and_then(|family| {
+                let member = members
+                    .iter()
+                    .position(|m| m.family == family && m.theta == theta)?;
+                Some((family, member))
+            }) else {
+                continue;
+            };
+            let Some(reference) = self.held_out_block_errors() else {
+                continue;
+            };
+            let mut trial = self.clone();
+            trial.accepted[k] = (simpler, theta.to_vec());
+            trial.refit_jointly();
+            if trial.keep_within_limits(trial.stateful()) {
+                continue;
+            }
+            let Some(errors) = trial.held_out_block_errors() else {
+                continue;
+            };
+            if select::significantly_worse(&errors, &reference, distinguish_t) {
+                continue;
+            }
+            *self = trial;
+            if let Some(step) = steps.iter_mut().filter(|s| s.accepted).nth(k) {
+                let relative = step.gain / step.sse_before.max(f64::MIN_POSITIVE);
+                step.runners_up
+                    .retain(|(m, _)| self.families[members[*m].family].kind != kind);
+                step.runners_up.insert(0, (step.member, relative));
+                step.indistinguishable.retain(|&m| m != member);
+                step.indistinguishable.insert(0, step.member);
+                step.member = member;
+            }
+        }
+    }
+
+    /// The held-out squared error of every block of the joint model, in the data as they are.
+    fn held_out_block_errors(&self) -> Option<Vec<f64>> {
+        let mut columns = vec![vec![1.0; self.y.len()]];
+        columns.extend(self.columns(&self.state_context(), None));
+        let refs: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
+        let gram = ModelGram::new(&refs, self.blocks);
+        let products = TargetProducts::new(&refs, self.y, self.blocks);
+        gram.cv_block_sse(&products.stats(), self.blocks)
     }
 
     /// Backward elimination in the joint model: with more than one correction in it, the one

@@ -1458,7 +1458,7 @@ impl<'v> ViewTarget<'v> {
 
 /// Whether the held-out errors of `other`, block by block, are significantly worse than
 /// `reference`'s (a paired comparison over the time blocks, t at or above `threshold`).
-fn significantly_worse(other: &[f64], reference: &[f64], threshold: f64) -> bool {
+pub(super) fn significantly_worse(other: &[f64], reference: &[f64], threshold: f64) -> bool {
     let d: Vec<f64> = other.iter().zip(reference).map(|(o, r)| o - r).collect();
     let m = mean(&d);
     let s = std_dev(&d);
