@@ -66,6 +66,10 @@ pub struct Aligned<'a> {
     pub resampled: bool,
     /// True when the grid is the simulation's (it is clearly coarser than the real one).
     pub on_simulation_grid: bool,
+    /// True when the simulation's values on these rows are read between its own samples
+    /// (interpolated, or placed by the speeds): there a signal that flips, such as a torque at
+    /// a reversal, has a sign the simulation never gave it.
+    pub simulation_between_samples: bool,
     /// Rows placed by the speeds (see [`placed_by_speeds`]) instead of linearly in time.
     pub placed_by_speed: usize,
     /// Time of every aligned row, s.
@@ -400,6 +404,8 @@ impl<'a> Aligned<'a> {
             sim_index,
             resampled: on_simulation_grid || real_resampled || sim_resampled,
             on_simulation_grid,
+            simulation_between_samples: sim_resampled
+                || (!on_simulation_grid && placed_by_speed > 0),
             placed_by_speed,
             time,
             real_target: Vec::new(),
