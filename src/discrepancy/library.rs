@@ -4319,7 +4319,9 @@ mod tests {
         let simulated: Vec<f64> = (0..40)
             .map(|i| direction[i] * if i % 10 == 9 { -0.5 } else { 0.8 })
             .collect();
-        let measured: Vec<f64> = (0..40).map(|i| simulated[i.saturating_sub(3)]).collect();
+        let measured: Vec<f64> = (0..40usize)
+            .map(|i| simulated[i.saturating_sub(3)])
+            .collect();
         let without_simulated = AxisSignals::new(
             AxisId::X,
             direction.iter().map(|d| 300.0 * d).collect(),
