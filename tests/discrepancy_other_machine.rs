@@ -181,17 +181,21 @@ fn compare(sim: &str, real: &str, target: &str) -> serde_json::Value {
     discrepancy_json(&sim_path, &real_path, target, &[])
 }
 
-/// The report on `target` when the simulation leaves the friction of `REAL` out.
-fn coulomb_left_out(seed: u64, target: &str) -> serde_json::Value {
-    let sim = feed_axis_csv(
+/// The simulation of `REAL`'s run `seed` without its Coulomb friction (and noise-free).
+fn without_coulomb(seed: u64) -> String {
+    feed_axis_csv(
         seed,
         Physics {
             coulomb_nm: 0.0,
             noisy: false,
             ..REAL
         },
-    );
-    compare(&sim, &feed_axis_csv(seed, REAL), target)
+    )
+}
+
+/// The report on `target` when the simulation leaves the friction of `REAL` out.
+fn coulomb_left_out(seed: u64, target: &str) -> serde_json::Value {
+    compare(&without_coulomb(seed), &feed_axis_csv(seed, REAL), target)
 }
 
 fn assert_named_first(report: &serde_json::Value, physics: &str) {
@@ -469,17 +473,8 @@ fn drive_read_late(csv: &str, rows: usize) -> String {
 /// timing, both are named.
 #[test]
 fn coulomb_friction_on_a_current_recorded_late_is_named_beside_the_delay() {
-    let seed = 8;
-    let sim = feed_axis_csv(
-        seed,
-        Physics {
-            coulomb_nm: 0.0,
-            noisy: false,
-            ..REAL
-        },
-    );
-    let real = drive_read_late(&feed_axis_csv(seed, REAL), 20);
-    let report = compare(&sim, &real, "X.current_A");
+    let real = drive_read_late(&feed_axis_csv(8, REAL), 20);
+    let report = compare(&without_coulomb(8), &real, "X.current_A");
     let named = named(&report);
     assert!(
         named.iter().any(|n| n == "coulomb_reversal") && named.iter().any(|n| n == "signal_delay"),

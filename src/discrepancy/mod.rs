@@ -1600,17 +1600,17 @@ impl Joint<'_> {
 
     /// Occam asked once more, beside every correction the selection named: a correction of a
     /// kind that nests a simpler one ([`library::nested_simpler`]) gives way to the simpler
-    /// one when the model with it predicts the held-out blocks no significantly worse in either
-    /// view (the paired test of the selection's own Occam rule, `distinguish_t`): under slow
+    /// one when the model with it predicts the held-out blocks no significantly worse in
+    /// either view (the paired test of the selection's own Occam rule, `distinguish_t`).
+    /// At the step that named it the model lacked what came later: on the independent check's
+    /// seed 2 a friction profile along the stroke took a Coulomb step on a current recorded
+    /// 16 s late together with part of the delay's error at the reversals, and once the delay
+    /// was in, its shape along the stroke added nothing. Both views, because under slow
     /// correlated noise the data as they are could not tell a concealed profile from its flat
-    /// part, which the high-passed data do (the twin's grid, position profile on the X torque,
-    /// 0 / 5 named with the first view alone). At the step that named
-    /// it the model lacked what came later: on the independent check's seed 1 a friction
-    /// profile along the stroke took a 0.32 A Coulomb step on a current recorded 33 s late
-    /// together with part of the delay's error at the reversals (held out 0.630 against the
-    /// flat step's 0.601), and once the delay was in, its shape along the stroke added
-    /// nothing. The step then reports the simpler kind, the nesting one first among those the
-    /// data cannot tell from it.
+    /// part where the high-passed data do (the twin's grid, position profile on the X torque:
+    /// 0 / 5 named with the first view alone). The step then reports the simpler kind, the
+    /// nesting one first among those the data cannot tell from it; its gain and p-value stay
+    /// those of the step that named the nesting one.
     fn simpler_where_nested(&mut self, steps: &mut [Step], members: &[Member], distinguish_t: f64) {
         for k in 0..self.accepted.len() {
             if !self.active[k] || self.watch.stopped() {
