@@ -531,7 +531,13 @@ const GROSS_MISMATCH_NOISE_RATIO: f64 = 4.0;
 /// The level from which what the corrections leave is a gross mismatch rather than noise:
 /// [`GROSS_MISMATCH_NOISE_RATIO`] × its sample-to-sample part.
 fn gross_mismatch_level(floor: &NoiseFloor) -> f64 {
-    GROSS_MISMATCH_NOISE_RATIO * floor.sample_noise_rms
+    gross_mismatch_over(floor.sample_noise_rms)
+}
+
+/// The level from which an error is a gross mismatch beside `sample_noise_rms` of noise from
+/// sample to sample ([`GROSS_MISMATCH_NOISE_RATIO`] × it).
+fn gross_mismatch_over(sample_noise_rms: f64) -> f64 {
+    GROSS_MISMATCH_NOISE_RATIO * sample_noise_rms
 }
 
 /// Whether what the corrections leave is a gross mismatch ([`gross_mismatch_level`]).
@@ -818,6 +824,7 @@ fn analyse_with(
             members: &members,
             families: &families,
             store: &store,
+            gross_mismatch: gross_mismatch_over(white_noise_from_differences(&residual)),
         },
         options,
         &mut joint,
