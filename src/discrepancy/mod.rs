@@ -540,6 +540,18 @@ fn gross_mismatch_over(sample_noise_rms: f64) -> f64 {
     GROSS_MISMATCH_NOISE_RATIO * sample_noise_rms
 }
 
+/// The level from which a held-out error is a gross mismatch beside `sample_noise_rms`
+/// ([`gross_mismatch_over`]); infinite where the noise from sample to sample reads zero
+/// because it cannot be told (most samples repeat the one before: a current at its floor,
+/// a coarsely quantised series), so that no error is gross there.
+fn gross_mismatch_beside(sample_noise_rms: f64) -> f64 {
+    if sample_noise_rms > 0.0 {
+        gross_mismatch_over(sample_noise_rms)
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// Whether what the corrections leave is a gross mismatch ([`gross_mismatch_level`]).
 fn leaves_gross_mismatch(floor: &NoiseFloor) -> bool {
     floor.rms >= gross_mismatch_level(floor)
@@ -824,7 +836,7 @@ fn analyse_with(
             members: &members,
             families: &families,
             store: &store,
-            gross_mismatch: gross_mismatch_over(white_noise_from_differences(&residual)),
+            gross_mismatch: gross_mismatch_beside(white_noise_from_differences(&residual)),
         },
         options,
         &mut joint,
