@@ -2200,6 +2200,14 @@ mod tests {
 
     /// A member whose columns hold a value that is not finite is not offered: built for the
     /// selection it is checked once binned, and its bin's mean is not finite either.
+    /// An error is gross from four times the noise from sample to sample; where that noise
+    /// reads zero it cannot be told, and no error is gross.
+    #[test]
+    fn no_error_is_gross_beside_a_sample_noise_that_cannot_be_told() {
+        assert!((gross_mismatch_beside(0.05) - 0.2).abs() < 1e-12);
+        assert_eq!(gross_mismatch_beside(0.0), f64::INFINITY);
+    }
+
     #[test]
     fn a_member_with_a_value_that_is_not_finite_is_dropped_once_binned() {
         let columns = ["time_s", "S.stator_temp_C"];
