@@ -2198,8 +2198,6 @@ mod tests {
     use super::*;
     use std::sync::Mutex;
 
-    /// A member whose columns hold a value that is not finite is not offered: built for the
-    /// selection it is checked once binned, and its bin's mean is not finite either.
     /// An error is gross from four times the noise from sample to sample; where that noise
     /// reads zero it cannot be told, and no error is gross.
     #[test]
@@ -2208,6 +2206,8 @@ mod tests {
         assert_eq!(gross_mismatch_beside(0.0), f64::INFINITY);
     }
 
+    /// A member whose columns hold a value that is not finite is not offered: built for the
+    /// selection it is checked once binned, and its bin's mean is not finite either.
     #[test]
     fn a_member_with_a_value_that_is_not_finite_is_dropped_once_binned() {
         let columns = ["time_s", "S.stator_temp_C"];

@@ -1266,8 +1266,10 @@ const MASKED_PAIR_CANCELLING_SHARE: f64 = 0.3;
 /// (see [`MASKED_PAIR_OPPOSING_CORRELATION`]). Tried only when the
 /// step's best member alone explains at least half of the held-out error
 /// ([`GROSS_MISMATCH_GAIN`]; noise that its surrogates match does not), or when the error the
-/// model leaves (`held_out_sse`, summed over the rows) is a gross mismatch against the
-/// residual's sample-to-sample noise ([`Problem::gross_mismatch`]): two effects that oppose
+/// model leaves (`held_out_sse`, summed over the selection's rows, bin means that hold less
+/// of the white noise than single samples do, so the test errs on the side of not asking) is
+/// a gross mismatch against the residual's sample-to-sample noise
+/// ([`Problem::gross_mismatch`]): two effects that oppose
 /// each other leave a large error that neither alone explains much of (a changed convection
 /// and copper heat left out of a winding together, the independent check's seed 1: 0.59 K
 /// held out against 0.05 K of noise, of which no correction alone explained a quarter; the
