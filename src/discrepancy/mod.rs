@@ -531,22 +531,16 @@ const GROSS_MISMATCH_NOISE_RATIO: f64 = 4.0;
 /// The level from which what the corrections leave is a gross mismatch rather than noise:
 /// [`GROSS_MISMATCH_NOISE_RATIO`] × its sample-to-sample part.
 fn gross_mismatch_level(floor: &NoiseFloor) -> f64 {
-    gross_mismatch_over(floor.sample_noise_rms)
+    GROSS_MISMATCH_NOISE_RATIO * floor.sample_noise_rms
 }
 
-/// The level from which an error is a gross mismatch beside `sample_noise_rms` of noise from
-/// sample to sample ([`GROSS_MISMATCH_NOISE_RATIO`] × it).
-fn gross_mismatch_over(sample_noise_rms: f64) -> f64 {
-    GROSS_MISMATCH_NOISE_RATIO * sample_noise_rms
-}
-
-/// The level from which a held-out error is a gross mismatch beside `sample_noise_rms`
-/// ([`gross_mismatch_over`]); infinite where the noise from sample to sample reads zero
-/// because it cannot be told (most samples repeat the one before: a current at its floor,
-/// a coarsely quantised series), so that no error is gross there.
+/// The level from which a held-out error is a gross mismatch beside `sample_noise_rms` of
+/// noise from sample to sample ([`GROSS_MISMATCH_NOISE_RATIO`] × it); infinite where that
+/// noise reads zero because it cannot be told (most samples repeat the one before: a current
+/// at its floor, a coarsely quantised series), so that no error is gross there.
 fn gross_mismatch_beside(sample_noise_rms: f64) -> f64 {
     if sample_noise_rms > 0.0 {
-        gross_mismatch_over(sample_noise_rms)
+        GROSS_MISMATCH_NOISE_RATIO * sample_noise_rms
     } else {
         f64::INFINITY
     }
