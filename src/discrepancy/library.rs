@@ -2233,6 +2233,25 @@ pub struct WindingCause {
     pub physics: Physics,
     /// That finding's explanation, as the winding's report gives it.
     pub explanation: String,
+    /// The other physics the winding's analysis named that heat it ([`WindingCause::inheritable`]),
+    /// strongest first, each with its finding's explanation. The part follows the winding's
+    /// whole mismatch and is named after the first; these are said beside it, since the part
+    /// cannot tell them apart (each one's share of the winding's mismatch through the part's
+    /// own lags, offered as a correction of its own, added nothing held out on a bearing two
+    /// nodes from the winding).
+    pub also: Vec<InheritedAlso>,
+}
+
+/// A physics the winding's analysis named beside the first that heats the winding too
+/// ([`WindingCause::also`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InheritedAlso {
+    /// The physics.
+    pub physics: Physics,
+    /// Its share of the winding's joint model: the held-out R² lost without it there.
+    pub delta_r2: f64,
+    /// Its finding's explanation, as the winding's report gives it.
+    pub explanation: String,
 }
 
 impl WindingCause {
@@ -3288,8 +3307,20 @@ pub fn explain(
         p.insert("winding_mean_mismatch_K".into(), mean_mismatch);
         p.insert("winding_largest_mismatch_K".into(), largest);
         let unsettled = steady_note(&mut p);
+        let also: String = cause
+            .also
+            .iter()
+            .map(|also| {
+                format!(
+                    "; it also names {} (ΔR² {:.3} on the winding), which the {target} inherits with the rest of the winding's mismatch: {}",
+                    also.physics.id(),
+                    also.delta_r2,
+                    also.explanation
+                )
+            })
+            .collect();
         let text = format!(
-            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}{unsettled}; on the winding itself the analysis names {}: {}",
+            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}{unsettled}; on the winding itself the analysis names {}: {}{also}",
             mean_mismatch.abs(),
             if mean_mismatch >= 0.0 {
                 "warmer"

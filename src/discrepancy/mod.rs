@@ -60,7 +60,7 @@ use crate::fit::autocorrelation::white_noise_from_differences;
 use crate::parallel::{join_or_resume, parallel_map};
 use align::Aligned;
 use cv::{Blocks, ModelGram, NormalEquations, TargetProducts, TargetStats, least_squares};
-use library::{Context, Family, Kind, WindingCause, families};
+use library::{Context, Family, InheritedAlso, Kind, WindingCause, families};
 use real_delay::RealDelay;
 use select::{JointModel, Member, Problem, Step, Store, stepwise};
 use series::{bin_means, bin_ranges, integrated_autocorrelation, mean};
@@ -613,7 +613,8 @@ fn analyse_watched(
 /// When a part beside a motor is left with a gross mismatch, whether or not its analysis named
 /// anything (what it named may be its own physics, or a lag standing in for the winding's),
 /// what the motor's winding lacks: the physics an analysis of the winding (measured by the
-/// drive in both runs) names first, if a part can inherit it. The part's analysis is then run
+/// drive in both runs) names first, if a part can inherit it, with the other heating physics
+/// it names beside (said in the part's finding). The part's analysis is then run
 /// again with the winding's mismatch on offer ([`library::WindingCause`]); the winding's own
 /// forms of the physics, rebuilt from currents and speeds, may follow the winding less
 /// faithfully than its measurement does, and through the housing the part follows the winding.
@@ -648,10 +649,27 @@ fn winding_cause(
     let Some(physics) = Physics::ALL.into_iter().find(|p| p.id() == first.physics) else {
         return Ok(None);
     };
+    let mut also: Vec<InheritedAlso> = Vec::new();
+    for finding in winding_report.findings.iter().skip(1) {
+        let Some(other) = Physics::ALL.into_iter().find(|p| p.id() == finding.physics) else {
+            continue;
+        };
+        if WindingCause::inheritable(other)
+            && other != physics
+            && also.iter().all(|named| named.physics != other)
+        {
+            also.push(InheritedAlso {
+                physics: other,
+                delta_r2: finding.delta_r2,
+                explanation: finding.explanation.clone(),
+            });
+        }
+    }
     Ok(WindingCause::inheritable(physics).then(|| WindingCause {
         winding,
         physics,
         explanation: first.explanation.clone(),
+        also,
     }))
 }
 
