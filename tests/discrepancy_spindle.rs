@@ -302,6 +302,8 @@ fn copper_loss_and_coolant_left_out_together_are_both_said_on_the_bearing_that_f
             ),
         "{explanation}"
     );
+    let weight = finding["parameters"][format!("winding_also_{other}_delta_r2")].as_f64();
+    assert!(weight > Some(0.0), "{finding}");
     let (bearing, _) = steady_gain_per_winding_kelvin();
     assert_within_five_percent(finding, "gain_per_K", bearing);
     let rmse = report["improved"]["rmse"].as_f64().unwrap_or(f64::NAN);

@@ -3307,6 +3307,14 @@ pub fn explain(
         p.insert("winding_mean_mismatch_K".into(), mean_mismatch);
         p.insert("winding_largest_mismatch_K".into(), largest);
         let unsettled = steady_note(&mut p);
+        // Machine-readable too: which other physics the part inherits, with its weight on
+        // the winding.
+        for also in &cause.also {
+            p.insert(
+                format!("winding_also_{}_delta_r2", also.physics.id()),
+                also.delta_r2,
+            );
+        }
         let also: String = cause
             .also
             .iter()
