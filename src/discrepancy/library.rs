@@ -4424,21 +4424,18 @@ mod tests {
         assert!(braking(&neither).is_empty());
     }
 
-    /// Friction of 0.4 A that the simulation lacks, seen by a current sensor 0.05 A off: the
-    /// step is the friction's alone, and the extra I² is what it adds to the simulated
-    /// current while the axis moves, nothing at standstill. A current 5 % larger than
-    /// simulated (a weaker torque constant) is a change of scale, not friction.
-    #[test]
-    fn the_friction_step_is_read_from_the_two_currents_apart_from_a_change_of_scale() {
-        let time: Vec<f64> = (0..400).map(f64::from).collect();
-        let direction: Vec<f64> = (0..400)
+    /// `n` rows, 1 s apart, of an axis that rests one row in four and moves forward two and back
+    /// one, and its simulated current: nothing at rest, 0.2–3 A while it moves.
+    fn axis_stepping_both_ways(n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let time: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let direction: Vec<f64> = (0..n)
             .map(|i| match i % 4 {
                 0 => 0.0,
                 1 | 2 => 1.0,
                 _ => -1.0,
             })
             .collect();
-        let sim: Vec<f64> = (0..400)
+        let sim: Vec<f64> = (0..n)
             .map(|i| {
                 if direction[i] == 0.0 {
                     0.0
@@ -4447,18 +4444,37 @@ mod tests {
                 }
             })
             .collect();
-        let axis = |real: Vec<f64>| {
-            AxisSignals::new(
-                AxisId::X,
-                direction.iter().map(|d| 300.0 * d).collect(),
-                Some(real),
-                None,
-                None,
-                None,
-                Some(sim.clone()),
-                direction.clone(),
-            )
-        };
+        (time, direction, sim)
+    }
+
+    /// The X axis moving in `direction` at 300 rpm, its current as simulated (`sim`) and as
+    /// recorded (`real`), and its position where given.
+    fn with_currents(
+        direction: &[f64],
+        sim: &[f64],
+        position: Option<&[f64]>,
+        real: Vec<f64>,
+    ) -> AxisSignals {
+        AxisSignals::new(
+            AxisId::X,
+            direction.iter().map(|d| 300.0 * d).collect(),
+            Some(real),
+            None,
+            position.map(<[f64]>::to_vec),
+            None,
+            Some(sim.to_vec()),
+            direction.to_vec(),
+        )
+    }
+
+    /// Friction of 0.4 A that the simulation lacks, seen by a current sensor 0.05 A off: the
+    /// step is the friction's alone, and the extra I² is what it adds to the simulated
+    /// current while the axis moves, nothing at standstill. A current 5 % larger than
+    /// simulated (a weaker torque constant) is a change of scale, not friction.
+    #[test]
+    fn the_friction_step_is_read_from_the_two_currents_apart_from_a_change_of_scale() {
+        let (time, direction, sim) = axis_stepping_both_ways(400);
+        let axis = |real: Vec<f64>| with_currents(&direction, &sim, None, real);
         let with_friction: Vec<f64> = sim
             .iter()
             .zip(&direction)
@@ -4501,37 +4517,10 @@ mod tests {
     #[test]
     fn the_friction_step_is_read_beside_a_drifting_sensor_zero_and_a_preload_along_the_stroke() {
         let n = 400;
-        let time: Vec<f64> = (0..n).map(|i| i as f64).collect();
-        let direction: Vec<f64> = (0..n)
-            .map(|i| match i % 4 {
-                0 => 0.0,
-                1 | 2 => 1.0,
-                _ => -1.0,
-            })
-            .collect();
+        let (time, direction, sim) = axis_stepping_both_ways(n);
         let position: Vec<f64> = (0..n).map(|i| ((i * 13) % 97) as f64).collect();
         let along = normalised_position(&position);
-        let sim: Vec<f64> = (0..n)
-            .map(|i| {
-                if direction[i] == 0.0 {
-                    0.0
-                } else {
-                    0.2 + 2.8 * ((i * 37) % 101) as f64 / 100.0
-                }
-            })
-            .collect();
-        let axis = |real: Vec<f64>| {
-            AxisSignals::new(
-                AxisId::X,
-                direction.iter().map(|d| 300.0 * d).collect(),
-                Some(real),
-                None,
-                Some(position.clone()),
-                None,
-                Some(sim.clone()),
-                direction.clone(),
-            )
-        };
+        let axis = |real: Vec<f64>| with_currents(&direction, &sim, Some(&position), real);
         let beside = |i: usize| 0.6 * time[i] / time[n - 1] + 0.3 * direction[i].abs() * along[i];
         let with_friction: Vec<f64> = (0..n)
             .map(|i| sim[i] + 0.4 * direction[i].abs() + 0.05 + beside(i))
