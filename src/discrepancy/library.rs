@@ -1407,7 +1407,17 @@ fn friction_current(a: &AxisSignals, time: &[f64]) -> Option<FrictionCurrent> {
     let drift: Vec<f64> = times.iter().map(|t| (t - time_mean) / span).collect();
     let profile: Option<Vec<f64>> = a.position.as_deref().map(|position| {
         let along = normalised_position(position);
-        rows.iter().zip(&sign).map(|(&i, s)| s * along[i]).collect()
+        // A row whose position was not read takes no part in the profile.
+        rows.iter()
+            .zip(&sign)
+            .map(|(&i, s)| {
+                if along[i].is_finite() {
+                    s * along[i]
+                } else {
+                    0.0
+                }
+            })
+            .collect()
     });
     let mut beside: Vec<&[f64]> = vec![&scale, &ones];
     if span > 0.0 {
@@ -2805,11 +2815,8 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         current_pair_signals(axis),
                         vec!["tau_s", "lag_ratio"],
                         thermal_grid(&taus, &[]),
-                        Box::new(move |ctx, _| {
-                            ctx.axis(axis)
-                                .and_then(|a| friction_current(a, &ctx.time))
-                                .map_or_else(Vec::new, |f| vec![f.extra])
-                        }),
+                        // Read once from the two currents, which every member shares.
+                        Box::new(move |_, _| vec![f.extra.clone()]),
                         temperature.then_some(GainLimit::positive(0)),
                         Some(axis),
                         Start::Rest,
