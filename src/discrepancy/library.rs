@@ -64,6 +64,11 @@ impl Physics {
         Physics::IronLoss,
     ];
 
+    /// The physics whose report id is `id` ([`Physics::id`]).
+    pub fn from_id(id: &str) -> Option<Physics> {
+        Physics::ALL.into_iter().find(|p| p.id() == id)
+    }
+
     /// The id used in reports.
     pub fn id(self) -> &'static str {
         match self {
@@ -3349,26 +3354,17 @@ pub fn explain(
         p.insert("winding_mean_mismatch_K".into(), mean_mismatch);
         p.insert("winding_largest_mismatch_K".into(), largest);
         let unsettled = steady_note(&mut p);
-        // Machine-readable too: which other physics the part inherits, with its weight on
-        // the winding.
-        for also in &cause.also {
-            p.insert(
-                format!("winding_also_{}_delta_r2", also.physics.id()),
-                also.delta_r2,
-            );
+        // Each other physics the part inherits, in words and machine-readable, with its
+        // weight on the winding.
+        let mut also = String::new();
+        for other in &cause.also {
+            let id = other.physics.id();
+            p.insert(format!("winding_also_{id}_delta_r2"), other.delta_r2);
+            also.push_str(&format!(
+                "; it also names {id} (ΔR² {:.3} on the winding), which the {target} inherits with the rest of the winding's mismatch: {}",
+                other.delta_r2, other.explanation
+            ));
         }
-        let also: String = cause
-            .also
-            .iter()
-            .map(|also| {
-                format!(
-                    "; it also names {} (ΔR² {:.3} on the winding), which the {target} inherits with the rest of the winding's mismatch: {}",
-                    also.physics.id(),
-                    also.delta_r2,
-                    also.explanation
-                )
-            })
-            .collect();
         let text = format!(
             "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}{unsettled}; on the winding itself the analysis names {}: {}{also}",
             mean_mismatch.abs(),

@@ -646,12 +646,13 @@ fn winding_cause(
     let Some(first) = winding_report.findings.first() else {
         return Ok(None);
     };
-    let Some(physics) = Physics::ALL.into_iter().find(|p| p.id() == first.physics) else {
+    let Some(physics) = Physics::from_id(&first.physics).filter(|p| WindingCause::inheritable(*p))
+    else {
         return Ok(None);
     };
     let mut also: Vec<InheritedAlso> = Vec::new();
     for finding in winding_report.findings.iter().skip(1) {
-        let Some(other) = Physics::ALL.into_iter().find(|p| p.id() == finding.physics) else {
+        let Some(other) = Physics::from_id(&finding.physics) else {
             continue;
         };
         if WindingCause::inheritable(other)
@@ -665,7 +666,7 @@ fn winding_cause(
             });
         }
     }
-    Ok(WindingCause::inheritable(physics).then(|| WindingCause {
+    Ok(Some(WindingCause {
         winding,
         physics,
         explanation: first.explanation.clone(),
