@@ -283,6 +283,25 @@ fn coulomb_friction_left_out_is_named_on_the_winding_through_the_current_it_draw
     assert_held_out_within_the_thermometer_noise(&report);
 }
 
+/// The same friction left out of a simulation exported every 5 s beside a recording at 1 Hz:
+/// the corrections are built on the real recording's own rows and read at the simulation's
+/// instants. The friction step read once for the simulation's rows was handed to the real
+/// rows too, where its length did not fit, and the winding's Coulomb heat was not offered at
+/// all (copper loss named in its place, as on the independent check's seeds 7 and 10).
+#[test]
+fn coulomb_friction_left_out_of_a_coarse_export_is_named_on_the_winding() {
+    let exported: String = without_coulomb(11)
+        .lines()
+        .enumerate()
+        .filter(|(k, _)| *k == 0 || (k - 1) % 5 == 0)
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    let report = compare(&exported, &feed_axis_csv(11, REAL), "X.stator_temp_C");
+    assert_eq!(report["alignment"]["on_simulation_grid"], true, "{report}");
+    assert_named_first(&report, "coulomb_reversal");
+    assert_held_out_within_the_thermometer_noise(&report);
+}
+
 /// Coulomb friction left out while the real current sensor's zero drifts (0.1 A at the start,
 /// 0.3 A/h) and the simulation's stays put: the drift moves the currents' difference too.
 /// Read beside the offset and the scale alone, the friction step explained 41 % of it, below

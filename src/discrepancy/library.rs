@@ -2814,14 +2814,25 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             }
             if reversing && site == Site::Motor {
                 let current_name = axis_column(axis, Quantity::Current);
+                let read_on = ctx.time.clone();
                 match friction_current(axis_signals, &ctx.time) {
                     Some(f) if f.explained >= FRICTION_STEP_MIN_SHARE => out.push(thermal_family(
                         Physics::CoulombReversal,
                         current_pair_signals(axis),
                         vec!["tau_s", "lag_ratio"],
                         thermal_grid(&taus, &[]),
-                        // Read once from the two currents, which every member shares.
-                        Box::new(move |_, _| vec![f.extra.clone()]),
+                        // Read once from the two currents, which every member built on these
+                        // rows shares; on other rows (a coarse export's corrections are built
+                        // on the real recording's own) read from the currents there.
+                        Box::new(move |ctx, _| {
+                            if ctx.time == read_on {
+                                vec![f.extra.clone()]
+                            } else {
+                                ctx.axis(axis)
+                                    .and_then(|a| friction_current(a, &ctx.time))
+                                    .map_or_else(Vec::new, |f| vec![f.extra])
+                            }
+                        }),
                         temperature.then_some(GainLimit::positive(0)),
                         Some(axis),
                         Start::Rest,
