@@ -791,6 +791,54 @@ fn a_current_sensor_drifting_only_while_its_drive_is_on_is_named_with_its_size()
         .expect("offset_while_reading");
     assert!((drift + 0.05).abs() < 0.01, "drift {drift} A/h");
     assert!((offset + 0.1).abs() < 0.02, "offset {offset} A");
+    // The noise from sample to sample is the sensor's, measured where the drive is on.
+    let sample_noise = report["noise_floor"]["sample_noise_rms"]
+        .as_f64()
+        .expect("sample_noise_rms");
+    assert!(
+        (sample_noise - 0.02).abs() < 0.004,
+        "sample noise {sample_noise} A"
+    );
+}
+
+/// A current sensor whose zero falls through the floor: from +0.1 A by 0.3 A/h over three
+/// hours, so that it reads 0 A through every dwell after the first twenty minutes and then
+/// through the lighter cuts too. Fitted with each 0 A taken as its value, 0.032 A was left
+/// held out, slow (a correlation time of 8 min) beside 0.02 A of noise: the readings at 0 A
+/// stand for currents below it. Fitted to them as bounds, 0.016 A is left, from sample to
+/// sample (less than the noise, which the floor cuts off).
+#[test]
+fn a_current_sensors_zero_falling_through_its_floor_is_fitted_from_the_readings_as_bounds() {
+    let sim = feed_axis_csv(
+        12,
+        Physics {
+            noisy: false,
+            ..REAL
+        },
+    );
+    let real = feed_axis_csv(
+        12,
+        Physics {
+            current_offset_drift: (0.1, -0.3),
+            ..REAL
+        },
+    );
+    let report = compare(&sim, &real, "X.current_A");
+    assert_named_first(&report, "sensor_offset_drift");
+    let drift = parameter(&report["findings"][0], "drift_per_hour");
+    assert!((drift + 0.3).abs() < 0.03, "drift {drift} A/h");
+    let bounds = &report["alignment"]["readings_as_bounds"];
+    assert!(bounds.is_object(), "{report}");
+    let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
+    assert!(rmse < 1.25 * 0.02, "held-out RMSE {rmse} A");
+    // The noise from sample to sample is measured where the sensor reads above its floor.
+    let sample_noise = report["noise_floor"]["sample_noise_rms"]
+        .as_f64()
+        .expect("sample_noise_rms");
+    assert!(
+        (sample_noise - 0.02).abs() < 0.005,
+        "sample noise {sample_noise} A"
+    );
 }
 
 /// Nothing left out: the same machine's simulation and recording are consistent, its drive

@@ -405,7 +405,7 @@ fn standstill_spans(sim: &[f64], floor: f64) -> Vec<std::ops::Range<usize>> {
 }
 
 /// φ(z)/Φ(z), kept finite far in the lower tail where Φ underflows (there it tends to −z).
-fn inverse_mills_ratio(z: f64) -> f64 {
+pub(super) fn inverse_mills_ratio(z: f64) -> f64 {
     if z > -30.0 {
         standard_normal_pdf(z) / standard_normal_cdf(z)
     } else {

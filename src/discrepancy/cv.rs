@@ -76,7 +76,7 @@ impl Blocks {
 
 /// Cholesky factor (lower, row-major p×p) of a symmetric matrix with a small ridge added for
 /// near-collinear columns; `None` when the matrix is not usable at all.
-fn cholesky(matrix: &[f64], p: usize) -> Option<Vec<f64>> {
+pub(super) fn cholesky(matrix: &[f64], p: usize) -> Option<Vec<f64>> {
     if p == 0 {
         return Some(Vec::new());
     }
@@ -109,7 +109,7 @@ fn cholesky(matrix: &[f64], p: usize) -> Option<Vec<f64>> {
 }
 
 /// Solves L Lᵀ x = b.
-fn cholesky_solve(l: &[f64], p: usize, b: &[f64]) -> Vec<f64> {
+pub(super) fn cholesky_solve(l: &[f64], p: usize, b: &[f64]) -> Vec<f64> {
     let mut z = b.to_vec();
     cholesky_solve_in_place(l, p, &mut z);
     z

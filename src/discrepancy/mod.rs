@@ -35,6 +35,7 @@
 pub mod align;
 pub mod budget;
 pub mod censor;
+pub mod cut_off_refit;
 pub mod cv;
 pub mod kept;
 pub mod library;
@@ -53,12 +54,14 @@ pub use library::Physics;
 pub use localise::Region;
 pub use report::{
     Alignment, Alternative, Calibration, DiscrepancyReport, Finding, FitQuality,
-    JUDGED_AFTER_REFIT, Method, NoiseFloor, NotTested, PlotData, StepTrace, Verdict,
+    JUDGED_AFTER_REFIT, Method, NoiseFloor, NotTested, PlotData, ReadingsAsBounds, StepTrace,
+    Verdict,
 };
 
-use crate::fit::autocorrelation::white_noise_from_differences;
+use crate::fit::autocorrelation::{white_noise_from_differences, white_noise_of_steps};
 use crate::parallel::{join_or_resume, parallel_map};
 use align::Aligned;
+use cut_off_refit::{CUT_OFF_MIN_GAIN, CutOffReadings};
 use cv::{Blocks, ModelGram, NormalEquations, TargetProducts, TargetStats, least_squares};
 use library::{Context, Family, InheritedAlso, Kind, WindingCause, families};
 use real_delay::RealDelay;
@@ -963,6 +966,33 @@ fn analyse_with(
         b[0] = mean(&residual);
         (b, 0.0)
     });
+    // A censored target whose readings sit at the floor where the simulation compared as read
+    // does not put them (its zero drifting down): the corrections refitted to those readings
+    // as bounds, kept where they predict the held-out readings clearly better. Every held-out
+    // figure below is then of that fit, so that the findings' shares compare like with like.
+    let cut_off = aligned
+        .censoring
+        .filter(|_| read_later.is_none())
+        .and_then(|censoring| {
+            let sim = aligned.sim_column(target)?;
+            let readings = CutOffReadings::new(&censoring, &aligned.real_target, &sim)?;
+            let errors = readings.held_out_errors(&design, &full_blocks)?;
+            let as_bounds: f64 = errors.iter().map(|e| e * e).sum();
+            let as_compared = held_out_sse(&design, &residual, &full_blocks);
+            let rmse = |sse: f64| (sse / n.max(1) as f64).sqrt();
+            (as_bounds < (1.0 - CUT_OFF_MIN_GAIN) * as_compared).then(|| {
+                let figures = ReadingsAsBounds {
+                    held_out_rmse: rmse(as_bounds),
+                    held_out_rmse_as_compared: rmse(as_compared),
+                };
+                (readings, figures)
+            })
+        });
+    let (cut_off, readings_as_bounds) = cut_off.unzip();
+    let beta = match &cut_off {
+        Some(readings) => readings.fit(&design, &vec![true; n]).unwrap_or(beta),
+        None => beta,
+    };
     // Raw-unit coefficients and the offset.
     let raw_coefficients: Vec<f64> = beta[1..]
         .iter()
@@ -985,21 +1015,8 @@ fn analyse_with(
     }
     for k in 0..=selected.len() {
         let columns: Vec<&[f64]> = design[..1 + offsets[k]].to_vec();
-        let gram = ModelGram::new(&columns, &full_blocks);
-        let products = TargetProducts::new(&columns, &residual, &full_blocks);
-        let predicted = gram
-            .cv_predictions(&columns, &products.stats(), &full_blocks)
-            .unwrap_or_else(|| vec![mean(&residual); n]);
-        let errors: Vec<f64> = residual
-            .iter()
-            .zip(&predicted)
-            .map(|(r, p)| r - p)
-            .collect();
-        let sse: f64 = errors.iter().map(|e| e * e).sum();
-        held_out.push(FitQuality {
-            r2: 1.0 - sse / ss_total,
-            rmse: (sse / n as f64).sqrt(),
-        });
+        let errors = held_out_errors(&columns, &residual, &full_blocks, cut_off.as_ref());
+        held_out.push(quality_of(&errors, ss_total));
         if k == selected.len() {
             cv_residual = errors;
         }
@@ -1016,7 +1033,10 @@ fn analyse_with(
                     .filter(|(c, _)| !(offsets[k]..offsets[k + 1]).contains(c))
                     .map(|(_, c)| *c),
             );
-            held_out_quality(&columns, &residual, &full_blocks, ss_total)
+            quality_of(
+                &held_out_errors(&columns, &residual, &full_blocks, cut_off.as_ref()),
+                ss_total,
+            )
         })
         .collect();
 
@@ -1130,7 +1150,10 @@ fn analyse_with(
             standardised(&columns[1..].iter().map(|c| c.to_vec()).collect::<Vec<_>>());
         let mut cols: Vec<&[f64]> = vec![&ones];
         cols.extend(standard_cal.iter().map(|c| c.as_slice()));
-        held_out_quality(&cols, &recorded_residual, &full_blocks, ss_total)
+        quality_of(
+            &held_out_errors(&cols, &recorded_residual, &full_blocks, cut_off.as_ref()),
+            ss_total,
+        )
     };
 
     // Mismatch: what the calibrated simulation does not explain (corrections + residual).
@@ -1155,7 +1178,7 @@ fn analyse_with(
     let noise_floor = NoiseFloor {
         rms: series::rms(&cv_residual),
         correlation_time_s: correlation_samples * ctx.step_s,
-        sample_noise_rms: white_noise_from_differences(&cv_residual),
+        sample_noise_rms: sample_noise_of(&cv_residual, &aligned, ctx.reading.is_some()),
         window_s: located.window_s,
     };
 
@@ -1165,13 +1188,16 @@ fn analyse_with(
     let plot_bins = bin_ranges(n, 4000);
     // With a delay read from the real recording, the simulation moved that much later is
     // what the real recording holds then: the target as recorded less the later reading.
-    let corrected: Vec<f64> = aligned
-        .sim_target
-        .iter()
-        .zip(&fitted)
-        .zip(recorded_target.iter().zip(&aligned.real_target))
-        .map(|((s, f), (recorded, later))| s + f + (recorded - later))
-        .collect();
+    let corrected: Vec<f64> = match &cut_off {
+        Some(readings) => readings.corrected(&aligned.real_target, &fitted),
+        None => aligned
+            .sim_target
+            .iter()
+            .zip(&fitted)
+            .zip(recorded_target.iter().zip(&aligned.real_target))
+            .map(|((s, f), (recorded, later))| s + f + (recorded - later))
+            .collect(),
+    };
     let plot = PlotData {
         target: target.to_string(),
         time_s: bin_means(&ctx.time, &plot_bins),
@@ -1218,11 +1244,20 @@ fn analyse_with(
             resampled: aligned.resampled,
             on_simulation_grid: aligned.on_simulation_grid,
             placed_by_speed: aligned.placed_by_speed,
-            note: aligned.note(),
+            note: match readings_as_bounds {
+                Some(figures) => format!(
+                    "{}; the corrections were then fitted to the readings at the floor as bounds (the instrument reads its floor where the simulation, compared as read and corrected, lies above it): the held-out readings are predicted to RMSE {:.4} {unit}, against {:.4} {unit} with each reading at the floor taken as its value",
+                    aligned.note(),
+                    figures.held_out_rmse,
+                    figures.held_out_rmse_as_compared
+                ),
+                None => aligned.note(),
+            },
             start_s: ctx.time.first().copied().unwrap_or(0.0),
             end_s: ctx.time.last().copied().unwrap_or(0.0),
             censoring: aligned.censoring,
             read_later_s: read_later.map(|later| later.delay.delay_s),
+            readings_as_bounds,
         },
         not_tested,
         method: Method {
@@ -1324,6 +1359,66 @@ fn held_out_sse(columns: &[&[f64]], y: &[f64], blocks: &Blocks) -> f64 {
     let products = TargetProducts::new(columns, y, blocks);
     gram.cv_sse(&products.stats(), blocks)
         .unwrap_or_else(|| y.iter().map(|v| v * v).sum())
+}
+
+/// Held-out errors of `residual` on `columns` (the intercept first), fold by fold; of the
+/// readings taken as bounds where `cut_off` holds them ([`CutOffReadings`]).
+fn held_out_errors(
+    columns: &[&[f64]],
+    residual: &[f64],
+    blocks: &Blocks,
+    cut_off: Option<&CutOffReadings>,
+) -> Vec<f64> {
+    if let Some(errors) = cut_off.and_then(|readings| readings.held_out_errors(columns, blocks)) {
+        return errors;
+    }
+    let gram = ModelGram::new(columns, blocks);
+    let products = TargetProducts::new(columns, residual, blocks);
+    let predicted = gram
+        .cv_predictions(columns, &products.stats(), blocks)
+        .unwrap_or_else(|| vec![mean(residual); residual.len()]);
+    residual
+        .iter()
+        .zip(&predicted)
+        .map(|(r, p)| r - p)
+        .collect()
+}
+
+/// The sample-to-sample noise of what the corrections leave (`errors`). A reading at the
+/// real target's floor shows none of the instrument's noise (a current at 0 A through a
+/// standstill, cut off there or from a drive switched off: `silent`), so where the target has
+/// a floor its steps are taken only between two readings above it; otherwise more than half
+/// of the steps may be nil and the noise read as 0.
+fn sample_noise_of(errors: &[f64], aligned: &Aligned, silent: bool) -> f64 {
+    let lowest = || {
+        aligned
+            .real_target
+            .iter()
+            .copied()
+            .filter(|r| r.is_finite())
+            .fold(f64::INFINITY, f64::min)
+    };
+    let floor = match aligned.censoring {
+        Some(censoring) => censoring.floor,
+        None if silent => lowest(),
+        None => return white_noise_from_differences(errors),
+    };
+    let above = |i: usize| aligned.real_target.get(i).is_some_and(|r| *r > floor);
+    white_noise_of_steps(
+        (1..errors.len())
+            .filter(|&i| above(i) && above(i - 1))
+            .map(|i| errors[i] - errors[i - 1])
+            .collect(),
+    )
+}
+
+/// Held-out R² and RMSE from held-out `errors`.
+fn quality_of(errors: &[f64], ss_total: f64) -> FitQuality {
+    let sse: f64 = errors.iter().map(|e| e * e).sum();
+    FitQuality {
+        r2: 1.0 - sse / ss_total,
+        rmse: (sse / errors.len().max(1) as f64).sqrt(),
+    }
 }
 
 /// Held-out R² and RMSE of `y` on `columns` (the intercept first).

@@ -164,6 +164,21 @@ pub struct Alignment {
     /// coarsely to be moved): how much later the real target was read, s. The rows are then
     /// those whose later readings the recording holds.
     pub read_later_s: Option<f64>,
+    /// When the real target is censored and its readings at the floor were taken as bounds in
+    /// the corrections' fit (`discrepancy::cut_off_refit`): the held-out figures of both fits.
+    pub readings_as_bounds: Option<ReadingsAsBounds>,
+}
+
+/// The corrections of a censored target refitted to its readings at the floor as bounds, and
+/// why that fit was kept.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ReadingsAsBounds {
+    /// Held-out RMSE of the readings with the corrections fitted to them as bounds, target
+    /// unit (the report's `improved` figure).
+    pub held_out_rmse: f64,
+    /// Held-out RMSE of the same corrections fitted to the readings as compared (each reading
+    /// at the floor taken as its value), target unit.
+    pub held_out_rmse_as_compared: f64,
 }
 
 /// A physics that could not be tried, and why.

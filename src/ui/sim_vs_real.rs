@@ -429,6 +429,7 @@ mod tests {
                 end_s: 999.0,
                 censoring: None,
                 read_later_s: None,
+                readings_as_bounds: None,
             },
             not_tested: Vec::new(),
             method: crate::discrepancy::Method {
