@@ -310,8 +310,22 @@ fn coulomb_friction_left_out_of_a_coarse_export_is_named_on_the_winding() {
 /// (0.388 A against 0.389), it explains 90 %, and the winding names it first (0.030 °C).
 #[test]
 fn coulomb_friction_beside_a_drifting_current_sensor_is_named_on_the_winding() {
+    let report = coulomb_on_the_winding_beside_a_current_sensor_drifting((0.1, 0.3));
+    let share = report["findings"][0]["parameters"]["step_share_of_current_difference"]
+        .as_f64()
+        .expect("step_share_of_current_difference");
+    assert!(share >= 0.5, "share {share}");
+}
+
+/// The winding's report with the friction of `REAL` left out of the simulation while the real
+/// current sensor reads with `offset_drift` (A, A/h), checked for what every such case must
+/// show: Coulomb friction named first, its step the friction's within a quarter, and the
+/// held-out error within the thermometer's noise.
+fn coulomb_on_the_winding_beside_a_current_sensor_drifting(
+    offset_drift: (f64, f64),
+) -> serde_json::Value {
     let real = Physics {
-        current_offset_drift: (0.1, 0.3),
+        current_offset_drift: offset_drift,
         ..REAL
     };
     let report = compare(
@@ -320,19 +334,29 @@ fn coulomb_friction_beside_a_drifting_current_sensor_is_named_on_the_winding() {
         "X.stator_temp_C",
     );
     assert_named_first(&report, "coulomb_reversal");
-    let parameters = &report["findings"][0]["parameters"];
-    let step = parameters["current_step_A"]
+    let step = report["findings"][0]["parameters"]["current_step_A"]
         .as_f64()
         .expect("current_step_A");
     assert!(
         (step - 0.35 / 0.9).abs() < 0.25 * 0.35 / 0.9,
         "step {step} A"
     );
-    let share = parameters["step_share_of_current_difference"]
-        .as_f64()
-        .expect("step_share_of_current_difference");
-    assert!(share >= 0.5, "share {share}");
     assert_held_out_within_the_thermometer_noise(&report);
+    report
+}
+
+/// The same friction left out while the current sensor's zero falls through its floor (from
+/// +0.1 A by 0.3 A/h): from the first half hour on, the dwells and then the lighter cuts read
+/// 0 A, which says only that the current plus the sensor's zero is at or below it. Taken as
+/// values, those readings bent the line the step is read beside: the step explained 14 % of
+/// the currents' difference, the winding's Coulomb heat was not offered, and iron loss was
+/// named (0.085 °C held out). With the readings at the floor taken as bounds the step reads
+/// 0.457 A against 0.389 (the dwells, nearly all at the floor, tell the step from the
+/// sensor's level only loosely), explains 81 %, and Coulomb friction is named (0.030 °C).
+#[test]
+fn coulomb_friction_beside_a_current_sensor_zero_falling_through_its_floor_is_named_on_the_winding()
+{
+    coulomb_on_the_winding_beside_a_current_sensor_drifting((0.1, -0.3));
 }
 
 /// `csv` exported half a second later: each row's values at `time_s` + 0.5. The axis holds
@@ -792,13 +816,7 @@ fn a_current_sensor_drifting_only_while_its_drive_is_on_is_named_with_its_size()
     assert!((drift + 0.05).abs() < 0.01, "drift {drift} A/h");
     assert!((offset + 0.1).abs() < 0.02, "offset {offset} A");
     // The noise from sample to sample is the sensor's, measured where the drive is on.
-    let sample_noise = report["noise_floor"]["sample_noise_rms"]
-        .as_f64()
-        .expect("sample_noise_rms");
-    assert!(
-        (sample_noise - 0.02).abs() < 0.004,
-        "sample noise {sample_noise} A"
-    );
+    assert_sample_noise_near(&report, 0.02, 0.004);
 }
 
 /// A current sensor whose zero falls through the floor: from +0.1 A by 0.3 A/h over three
@@ -832,11 +850,16 @@ fn a_current_sensors_zero_falling_through_its_floor_is_fitted_from_the_readings_
     let rmse = report["improved"]["rmse"].as_f64().expect("improved.rmse");
     assert!(rmse < 1.25 * 0.02, "held-out RMSE {rmse} A");
     // The noise from sample to sample is measured where the sensor reads above its floor.
+    assert_sample_noise_near(&report, 0.02, 0.005);
+}
+
+/// The report's noise from sample to sample is `sigma` (A) to within `within`.
+fn assert_sample_noise_near(report: &serde_json::Value, sigma: f64, within: f64) {
     let sample_noise = report["noise_floor"]["sample_noise_rms"]
         .as_f64()
         .expect("sample_noise_rms");
     assert!(
-        (sample_noise - 0.02).abs() < 0.005,
+        (sample_noise - sigma).abs() < within,
         "sample noise {sample_noise} A"
     );
 }

@@ -115,6 +115,24 @@ pub fn reading_rows(real: &[f64], sim: &[f64]) -> Option<Vec<f64>> {
     )
 }
 
+/// The floor of a recording read as a magnitude: its lowest value when that is a point mass
+/// (at least [`MIN_AT_FLOOR`] readings and [`MIN_SHARE`] of them, [`POINT_MASS_RATIO`] times
+/// more than any other single value, so that a quantised signal does not qualify).
+pub fn floor_of(real: &[f64]) -> Option<f64> {
+    let floor = lowest(real);
+    if !floor.is_finite() {
+        return None;
+    }
+    let at_floor = real.iter().filter(|&&v| v == floor).count();
+    if at_floor < MIN_AT_FLOOR || (at_floor as f64) < MIN_SHARE * real.len() as f64 {
+        return None;
+    }
+    if most_repeated_other_value(real, floor) * POINT_MASS_RATIO > at_floor {
+        return None;
+    }
+    Some(floor)
+}
+
 impl Censoring {
     /// Detects a floor in `real` and estimates its noise where `sim` is at the floor. `None`
     /// when the real recording has no point mass at its minimum, the simulation is never at
@@ -122,17 +140,8 @@ impl Censoring {
     pub fn detect(real: &[f64], sim: &[f64]) -> Option<Censoring> {
         let n = real.len().min(sim.len());
         let (real, sim) = (&real[..n], &sim[..n]);
-        let floor = lowest(real);
-        if !floor.is_finite() {
-            return None;
-        }
+        let floor = floor_of(real)?;
         let at_floor = real.iter().filter(|&&v| v == floor).count();
-        if at_floor < MIN_AT_FLOOR || (at_floor as f64) < MIN_SHARE * n as f64 {
-            return None;
-        }
-        if most_repeated_other_value(real, floor) * POINT_MASS_RATIO > at_floor {
-            return None;
-        }
         let standstill_lag_rows = standstill_lag(real, sim, floor);
         let shifted = shift(sim, standstill_lag_rows);
         let sim = shifted.as_slice();

@@ -50,12 +50,17 @@ impl CutOffReadings {
     /// exported, not as read). `None` when the scatter is not positive or no reading sits at
     /// the floor.
     pub fn new(censoring: &Censoring, real: &[f64], sim: &[f64]) -> Option<CutOffReadings> {
+        CutOffReadings::at_floor(censoring.floor, censoring.sigma, real, sim)
+    }
+
+    /// The readings of `real` at and above `floor`, scattered by `sigma` about their level,
+    /// beside `sim`; `None` as [`CutOffReadings::new`].
+    pub fn at_floor(floor: f64, sigma: f64, real: &[f64], sim: &[f64]) -> Option<CutOffReadings> {
         let n = real.len().min(sim.len());
-        let sigma = censoring.sigma;
         if !(sigma > 0.0 && sigma.is_finite()) {
             return None;
         }
-        let at_floor: Vec<bool> = real[..n].iter().map(|r| *r <= censoring.floor).collect();
+        let at_floor: Vec<bool> = real[..n].iter().map(|r| *r <= floor).collect();
         if !at_floor.contains(&true) {
             return None;
         }
@@ -64,7 +69,7 @@ impl CutOffReadings {
             .zip(&sim[..n])
             .map(|(r, s)| r - s)
             .collect();
-        let bound = sim[..n].iter().map(|s| censoring.floor - s).collect();
+        let bound = sim[..n].iter().map(|s| floor - s).collect();
         Some(CutOffReadings {
             residual,
             bound,
@@ -88,6 +93,17 @@ impl CutOffReadings {
         (0..self.residual.len().min(fitted.len()))
             .map(|i| real[i] - self.residual[i] + self.reading(i, fitted[i]))
             .collect()
+    }
+
+    /// Squared errors of the readings, summed, against what the instrument would show for the
+    /// model `beta` of `columns`.
+    pub fn sse(&self, columns: &[&[f64]], beta: &[f64]) -> f64 {
+        (0..self.residual.len())
+            .map(|i| {
+                let m: f64 = columns.iter().zip(beta).map(|(c, b)| c[i] * b).sum();
+                (self.residual[i] - self.reading(i, m)).powi(2)
+            })
+            .sum()
     }
 
     /// Coefficients of `columns` fitted to the readings of the rows `training` keeps, by
@@ -261,9 +277,24 @@ mod tests {
     use rand::{SeedableRng, rngs::StdRng};
     use rand_distr::{Distribution, Normal};
 
-    /// A reading whose zero falls through its floor: a current of 1 A at every row, read with
-    /// an offset falling from +0.2 A by 0.4 A/h over 6 h and 0.03 A of noise, cut off at 0 A.
-    fn falling_zero() -> (Vec<f64>, Vec<f64>, Vec<f64>, Censoring) {
+    /// A reading whose zero falls through its floor, with the offset and the line in time it
+    /// is fitted on and its residual taken as values.
+    struct FallingZero {
+        ones: Vec<f64>,
+        hours: Vec<f64>,
+        as_values: Vec<f64>,
+        readings: CutOffReadings,
+    }
+
+    impl FallingZero {
+        fn columns(&self) -> Vec<&[f64]> {
+            vec![&self.ones, &self.hours]
+        }
+    }
+
+    /// A current of 1 A running and 0 A standing in turns of ten minutes, read with an offset
+    /// falling from +0.2 A by 0.4 A/h over 6 h and 0.03 A of noise, cut off at 0 A.
+    fn falling_zero() -> FallingZero {
         let n = 6 * 3600;
         let mut rng = StdRng::seed_from_u64(7);
         let noise = Normal::new(0.0, 0.03).expect("a positive σ");
@@ -286,43 +317,45 @@ mod tests {
             sigma_overall: 0.03,
             standstill_lag_rows: 0,
         };
-        (hours, sim, real, censoring)
+        FallingZero {
+            ones: vec![1.0; n],
+            as_values: real.iter().zip(&sim).map(|(r, s)| r - s).collect(),
+            readings: CutOffReadings::new(&censoring, &real, &sim).expect("readings at 0 A"),
+            hours,
+        }
     }
 
     #[test]
     fn a_zero_falling_through_the_floor_is_fitted_from_the_readings_as_bounds() {
-        let (hours, sim, real, censoring) = falling_zero();
-        let readings = CutOffReadings::new(&censoring, &real, &sim).expect("readings at 0 A");
-        let ones = vec![1.0; hours.len()];
-        let columns: Vec<&[f64]> = vec![&ones, &hours];
-        let beta = readings
-            .fit(&columns, &vec![true; hours.len()])
+        let zero = falling_zero();
+        let columns = zero.columns();
+        let beta = zero
+            .readings
+            .fit(&columns, &vec![true; zero.ones.len()])
             .expect("a fit");
         assert!((beta[0] - 0.2).abs() < 0.01, "offset {}", beta[0]);
         assert!((beta[1] + 0.4).abs() < 0.005, "drift {} A/h", beta[1]);
         // Each reading at the floor taken as its value holds the line up.
-        let residual: Vec<f64> = real.iter().zip(&sim).map(|(r, s)| r - s).collect();
-        let (as_values, _) = crate::discrepancy::cv::least_squares(&columns, &residual)
+        let (as_values, _) = crate::discrepancy::cv::least_squares(&columns, &zero.as_values)
             .expect("a least-squares fit");
         assert!(as_values[1] > -0.3, "drift as values {} A/h", as_values[1]);
     }
 
     #[test]
     fn the_held_out_readings_are_predicted_as_the_instrument_shows_them() {
-        let (hours, sim, real, censoring) = falling_zero();
-        let readings = CutOffReadings::new(&censoring, &real, &sim).expect("readings at 0 A");
-        let ones = vec![1.0; hours.len()];
-        let columns: Vec<&[f64]> = vec![&ones, &hours];
-        let blocks = Blocks::new(hours.len(), 8, 4);
-        let errors = readings
+        let zero = falling_zero();
+        let columns = zero.columns();
+        let blocks = Blocks::new(zero.ones.len(), 8, 4);
+        let errors = zero
+            .readings
             .held_out_errors(&columns, &blocks)
             .expect("every fold fitted");
         let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
         // No more than the noise (less where the floor cuts it off).
         assert!(rmse < 0.03, "held-out RMSE {rmse} A");
-        let residual: Vec<f64> = real.iter().zip(&sim).map(|(r, s)| r - s).collect();
         let gram = crate::discrepancy::cv::ModelGram::new(&columns, &blocks);
-        let products = crate::discrepancy::cv::TargetProducts::new(&columns, &residual, &blocks);
+        let products =
+            crate::discrepancy::cv::TargetProducts::new(&columns, &zero.as_values, &blocks);
         let as_values = gram
             .cv_sse(&products.stats(), &blocks)
             .expect("folds fitted");

@@ -1432,8 +1432,22 @@ fn friction_current(a: &AxisSignals, time: &[f64]) -> Option<FrictionCurrent> {
     let with_step: Vec<&[f64]> = std::iter::once(sign.as_slice())
         .chain(beside.iter().copied())
         .collect();
-    let (full, full_sse) = super::cv::least_squares(&with_step, &gap)?;
-    let (_, without_step_sse) = super::cv::least_squares(&beside, &gap)?;
+    let (mut full, mut full_sse) = super::cv::least_squares(&with_step, &gap)?;
+    let (_, mut without_step_sse) = super::cv::least_squares(&beside, &gap)?;
+    // A reading at the current's floor says only that the current is at or below it: a sensor
+    // whose zero falls through the floor reads 0 A where the line in time would say less, and
+    // taken as values those readings bend the line and the step with it. Where the real
+    // current has a floor, both fits take its readings there as bounds.
+    if let Some(readings) = cut_off_currents(real, sim, &rows, &gap) {
+        let fits = readings
+            .fit(&with_step, &vec![true; rows.len()])
+            .zip(readings.fit(&beside, &vec![true; rows.len()]));
+        if let Some((with, without)) = fits {
+            full_sse = readings.sse(&with_step, &with);
+            without_step_sse = readings.sse(&beside, &without);
+            full = with;
+        }
+    }
     if without_step_sse <= 0.0 {
         return None;
     }
@@ -1454,6 +1468,33 @@ fn friction_current(a: &AxisSignals, time: &[f64]) -> Option<FrictionCurrent> {
         explained: (without_step_sse - full_sse) / without_step_sse,
         extra,
     })
+}
+
+/// The real current's magnitudes on `rows` as readings at its floor and above, beside the
+/// simulated magnitudes (`gap` is their difference on those rows); `None` when the real
+/// current has no floor. The instrument's scatter is measured between rows both above it.
+fn cut_off_currents(
+    real: &[f64],
+    sim: &[f64],
+    rows: &[usize],
+    gap: &[f64],
+) -> Option<super::cut_off_refit::CutOffReadings> {
+    let floor = super::censor::floor_of(real)?;
+    let above = |k: usize| real[rows[k]] > floor;
+    let sigma = crate::fit::autocorrelation::white_noise_of_steps(
+        (1..rows.len())
+            .filter(|&k| above(k) && above(k - 1))
+            .map(|k| gap[k] - gap[k - 1])
+            .collect(),
+    );
+    let magnitudes =
+        |values: &[f64]| -> Vec<f64> { rows.iter().map(|&i| values[i].abs()).collect() };
+    super::cut_off_refit::CutOffReadings::at_floor(
+        floor,
+        sigma,
+        &magnitudes(real),
+        &magnitudes(sim),
+    )
 }
 
 /// Where a lagged driver's contribution starts at the first row.
