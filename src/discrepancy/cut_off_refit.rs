@@ -22,9 +22,9 @@ use super::cv::{Blocks, cholesky, cholesky_solve};
 use crate::fit::distributions::{standard_normal_cdf, standard_normal_pdf};
 
 /// Share of the held-out squared error of the readings, as compared, that the fit to the
-/// readings as bounds must remove to be kept. Where the instrument's zero stays put the two fits
-/// predict alike (within a few per cent on the independent check's currents) and the fit as
-/// compared, on which the selection ran, is kept.
+/// readings as bounds must remove to be kept. Where the instrument's zero stays put, the
+/// simulation compared as read already holds what the bounds say, and the fit as compared, on
+/// which the selection ran, is kept.
 pub const CUT_OFF_MIN_GAIN: f64 = 0.2;
 /// Newton steps of one fit at most (it converges in a handful: the likelihood is concave).
 const MAX_STEPS: usize = 60;

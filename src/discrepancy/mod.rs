@@ -985,10 +985,11 @@ fn analyse_with(
                     held_out_rmse: rmse(as_bounds),
                     held_out_rmse_as_compared: rmse(as_compared),
                 };
-                (readings, figures)
+                (readings, (figures, errors))
             })
         });
-    let (cut_off, readings_as_bounds) = cut_off.unzip();
+    let (cut_off, kept) = cut_off.unzip();
+    let (readings_as_bounds, mut final_errors) = kept.unzip();
     let beta = match &cut_off {
         Some(readings) => readings.fit(&design, &vec![true; n]).unwrap_or(beta),
         None => beta,
@@ -1015,7 +1016,11 @@ fn analyse_with(
     }
     for k in 0..=selected.len() {
         let columns: Vec<&[f64]> = design[..1 + offsets[k]].to_vec();
-        let errors = held_out_errors(&columns, &residual, &full_blocks, cut_off.as_ref());
+        // The final model's errors on bounds are those the refit was kept for.
+        let errors = match final_errors.take().filter(|_| k == selected.len()) {
+            Some(errors) => errors,
+            None => held_out_errors(&columns, &residual, &full_blocks, cut_off.as_ref()),
+        };
         held_out.push(quality_of(&errors, ss_total));
         if k == selected.len() {
             cv_residual = errors;
@@ -1390,18 +1395,13 @@ fn held_out_errors(
 /// a floor its steps are taken only between two readings above it; otherwise more than half
 /// of the steps may be nil and the noise read as 0.
 fn sample_noise_of(errors: &[f64], aligned: &Aligned, silent: bool) -> f64 {
-    let lowest = || {
-        aligned
-            .real_target
-            .iter()
-            .copied()
-            .filter(|r| r.is_finite())
-            .fold(f64::INFINITY, f64::min)
-    };
     let floor = match aligned.censoring {
-        Some(censoring) => censoring.floor,
-        None if silent => lowest(),
-        None => return white_noise_from_differences(errors),
+        Some(censoring) => Some(censoring.floor),
+        None if silent => censor::floor_of(&aligned.real_target),
+        None => None,
+    };
+    let Some(floor) = floor else {
+        return white_noise_from_differences(errors);
     };
     let above = |i: usize| aligned.real_target.get(i).is_some_and(|r| *r > floor);
     white_noise_of_steps(
