@@ -270,9 +270,14 @@ fn coulomb_friction_left_out_is_named_on_a_current_magnitude() {
 /// recordings' currents, and its step is the friction's.
 #[test]
 fn coulomb_friction_left_out_is_named_on_the_winding_through_the_current_it_draws() {
-    let report = coulomb_left_out(11, "X.stator_temp_C");
-    assert_named_first(&report, "coulomb_reversal");
-    // 0.35 N·m at 0.9 N·m/A: 0.39 A more current while the axis moves.
+    assert_friction_named_on_the_winding(&coulomb_left_out(11, "X.stator_temp_C"));
+}
+
+/// Coulomb friction named first on the winding, its step the friction's within a quarter
+/// (0.35 N·m at 0.9 N·m/A: 0.39 A more current while the axis moves), and the held-out error
+/// within the thermometer's noise.
+fn assert_friction_named_on_the_winding(report: &serde_json::Value) {
+    assert_named_first(report, "coulomb_reversal");
     let step = report["findings"][0]["parameters"]["current_step_A"]
         .as_f64()
         .expect("current_step_A");
@@ -280,7 +285,7 @@ fn coulomb_friction_left_out_is_named_on_the_winding_through_the_current_it_draw
         (step - 0.35 / 0.9).abs() < 0.25 * 0.35 / 0.9,
         "step {step} A"
     );
-    assert_held_out_within_the_thermometer_noise(&report);
+    assert_held_out_within_the_thermometer_noise(report);
 }
 
 /// The same friction left out of a simulation exported every 5 s beside a recording at 1 Hz:
@@ -319,8 +324,7 @@ fn coulomb_friction_beside_a_drifting_current_sensor_is_named_on_the_winding() {
 
 /// The winding's report with the friction of `REAL` left out of the simulation while the real
 /// current sensor reads with `offset_drift` (A, A/h), checked for what every such case must
-/// show: Coulomb friction named first, its step the friction's within a quarter, and the
-/// held-out error within the thermometer's noise.
+/// show ([`assert_friction_named_on_the_winding`]).
 fn coulomb_on_the_winding_beside_a_current_sensor_drifting(
     offset_drift: (f64, f64),
 ) -> serde_json::Value {
@@ -333,15 +337,7 @@ fn coulomb_on_the_winding_beside_a_current_sensor_drifting(
         &feed_axis_csv(11, real),
         "X.stator_temp_C",
     );
-    assert_named_first(&report, "coulomb_reversal");
-    let step = report["findings"][0]["parameters"]["current_step_A"]
-        .as_f64()
-        .expect("current_step_A");
-    assert!(
-        (step - 0.35 / 0.9).abs() < 0.25 * 0.35 / 0.9,
-        "step {step} A"
-    );
-    assert_held_out_within_the_thermometer_noise(&report);
+    assert_friction_named_on_the_winding(&report);
     report
 }
 

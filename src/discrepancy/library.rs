@@ -9,7 +9,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt;
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use super::align::{Index, SimulatedSamples, index_onto, interpolate};
 use super::kept::Kept;
@@ -1432,22 +1432,28 @@ fn friction_current(a: &AxisSignals, time: &[f64]) -> Option<FrictionCurrent> {
     let with_step: Vec<&[f64]> = std::iter::once(sign.as_slice())
         .chain(beside.iter().copied())
         .collect();
-    let (mut full, mut full_sse) = super::cv::least_squares(&with_step, &gap)?;
-    let (_, mut without_step_sse) = super::cv::least_squares(&beside, &gap)?;
     // A reading at the current's floor says only that the current is at or below it: a sensor
     // whose zero falls through the floor reads 0 A where the line in time would say less, and
     // taken as values those readings bend the line and the step with it. Where the real
     // current has a floor, both fits take its readings there as bounds.
-    if let Some(readings) = cut_off_currents(real, sim, &rows, &gap) {
-        let fits = readings
-            .fit(&with_step, &vec![true; rows.len()])
-            .zip(readings.fit(&beside, &vec![true; rows.len()]));
-        if let Some((with, without)) = fits {
-            full_sse = readings.sse(&with_step, &with);
-            without_step_sse = readings.sse(&beside, &without);
-            full = with;
+    let on_bounds = cut_off_currents(real, sim, &rows, &gap).and_then(|readings| {
+        let every_row = vec![true; rows.len()];
+        let with = readings.fit(&with_step, &every_row)?;
+        let without = readings.fit(&beside, &every_row)?;
+        let (with_sse, without_sse) = (
+            readings.sse(&with_step, &with),
+            readings.sse(&beside, &without),
+        );
+        Some((with, with_sse, without_sse))
+    });
+    let (full, full_sse, without_step_sse) = match on_bounds {
+        Some(fits) => fits,
+        None => {
+            let (full, full_sse) = super::cv::least_squares(&with_step, &gap)?;
+            let (_, without_step_sse) = super::cv::least_squares(&beside, &gap)?;
+            (full, full_sse, without_step_sse)
         }
-    }
+    };
     if without_step_sse <= 0.0 {
         return None;
     }
@@ -1469,6 +1475,9 @@ fn friction_current(a: &AxisSignals, time: &[f64]) -> Option<FrictionCurrent> {
         extra,
     })
 }
+
+/// A friction step's columns read on other rows than a family's own, with those rows' times.
+type StepsReadOn = (Vec<f64>, Vec<Vec<f64>>);
 
 /// The real current's magnitudes on `rows` as readings at its floor and above, beside the
 /// simulated magnitudes (`gap` is their difference on those rows); `None` when the real
@@ -2856,6 +2865,8 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
             if reversing && site == Site::Motor {
                 let current_name = axis_column(axis, Quantity::Current);
                 let read_on = ctx.time.clone();
+                // Other rows' steps, each read once, keyed by the rows' times.
+                let read_elsewhere: Mutex<Vec<StepsReadOn>> = Mutex::new(Vec::new());
                 match friction_current(axis_signals, &ctx.time) {
                     Some(f) if f.explained >= FRICTION_STEP_MIN_SHARE => out.push(thermal_family(
                         Physics::CoulombReversal,
@@ -2867,12 +2878,20 @@ pub fn families(ctx: &Context) -> (Vec<Family>, Vec<(Physics, String)>) {
                         // on the real recording's own) read from the currents there.
                         Box::new(move |ctx, _| {
                             if ctx.time == read_on {
-                                vec![f.extra.clone()]
-                            } else {
-                                ctx.axis(axis)
-                                    .and_then(|a| friction_current(a, &ctx.time))
-                                    .map_or_else(Vec::new, |f| vec![f.extra])
+                                return vec![f.extra.clone()];
                             }
+                            let mut read = read_elsewhere
+                                .lock()
+                                .unwrap_or_else(std::sync::PoisonError::into_inner);
+                            if let Some((_, columns)) = read.iter().find(|(t, _)| *t == ctx.time) {
+                                return columns.clone();
+                            }
+                            let columns = ctx
+                                .axis(axis)
+                                .and_then(|a| friction_current(a, &ctx.time))
+                                .map_or_else(Vec::new, |f| vec![f.extra]);
+                            read.push((ctx.time.clone(), columns.clone()));
+                            columns
                         }),
                         temperature.then_some(GainLimit::positive(0)),
                         Some(axis),
