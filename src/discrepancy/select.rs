@@ -130,9 +130,9 @@ pub struct Problem<'a> {
     /// Their columns.
     pub store: &'a Store,
     /// The held-out RMS error from which what the model leaves is a gross mismatch rather
-    /// than noise (a multiple of the residual's sample-to-sample noise, on all rows); infinite
-    /// where that noise cannot be told (a current reading zero at standstill most of the time,
-    /// a series quantised so coarsely that most samples repeat the one before).
+    /// than noise (a multiple of the residual's sample-to-sample noise, on all rows, between
+    /// readings above the target's floor where it has one); infinite where that noise cannot
+    /// be told (a series quantised so coarsely that most samples repeat the one before).
     pub gross_mismatch: f64,
 }
 
