@@ -414,14 +414,23 @@ fn standstill_spans(sim: &[f64], floor: f64) -> Vec<std::ops::Range<usize>> {
 }
 
 /// φ(z)/Φ(z), kept finite far in the lower tail where Φ underflows (there it tends to −z).
-pub(super) fn inverse_mills_ratio(z: f64) -> f64 {
-    if z > -30.0 {
-        standard_normal_pdf(z) / standard_normal_cdf(z)
+fn inverse_mills_ratio(z: f64) -> f64 {
+    inverse_mills_ratio_given(z, standard_normal_cdf(z))
+}
+
+/// [`inverse_mills_ratio`] where Φ(z) is already known (`cdf`): the distribution function
+/// is most of its cost.
+pub(super) fn inverse_mills_ratio_given(z: f64, cdf: f64) -> f64 {
+    if z > NORMAL_TAIL_FROM {
+        standard_normal_pdf(z) / cdf
     } else {
         let w = 1.0 / (z * z);
         -z / (1.0 - w + 3.0 * w * w - 15.0 * w * w * w)
     }
 }
+
+/// Below this z, Φ(z) is taken through its asymptotic tail form (it underflows soon after).
+pub(super) const NORMAL_TAIL_FROM: f64 = -30.0;
 
 /// How many times the most frequent value other than `floor` occurs.
 fn most_repeated_other_value(values: &[f64], floor: f64) -> usize {

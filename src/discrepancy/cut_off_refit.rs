@@ -17,7 +17,7 @@
 //! analysis keeps this fit only where it predicts the held-out readings clearly better than
 //! the fit of the readings as compared ([`CUT_OFF_MIN_GAIN`]).
 
-use super::censor::{Censoring, inverse_mills_ratio};
+use super::censor::{Censoring, NORMAL_TAIL_FROM, inverse_mills_ratio_given};
 use super::cv::{Blocks, cholesky, cholesky_solve};
 use crate::fit::distributions::{standard_normal_cdf, standard_normal_pdf};
 
@@ -110,6 +110,20 @@ impl CutOffReadings {
     /// maximum likelihood with the readings at the floor as bounds; `None` when the columns
     /// are degenerate on those rows.
     pub fn fit(&self, columns: &[&[f64]], training: &[bool]) -> Option<Vec<f64>> {
+        self.fit_from(columns, training, None)
+    }
+
+    /// [`CutOffReadings::fit`] from the coefficients `start` (of the same columns) where
+    /// given, rather than from the fit that takes every reading as its value. The
+    /// likelihood is concave, so the start changes only how many Newton steps it takes: a
+    /// fold's fit started from the one before it, which left out other blocks, is a step or
+    /// two from its own.
+    fn fit_from(
+        &self,
+        columns: &[&[f64]],
+        training: &[bool],
+        start: Option<&[f64]>,
+    ) -> Option<Vec<f64>> {
         let p = columns.len();
         let sigma = self.sigma;
         let rows = || (0..self.residual.len()).filter(|&i| training[i]);
@@ -134,41 +148,53 @@ impl CutOffReadings {
                 }
             }
         }
-        // The start: every reading taken as its value.
-        let mut gram_all = gram_above.clone();
-        let mut products_all = products_above.clone();
-        for &i in &floor_rows {
-            row_into(columns, i, &mut x);
-            let y = self.residual[i];
-            for a in 0..p {
-                products_all[a] += x[a] * y;
-                for b in 0..=a {
-                    gram_all[a * p + b] += x[a] * x[b];
-                }
-            }
-        }
         symmetrise(&mut gram_above, p);
-        symmetrise(&mut gram_all, p);
-        let mut beta = cholesky_solve(&cholesky(&gram_all, p)?, p, &products_all);
+        let mut beta = match start.filter(|start| start.len() == p) {
+            Some(start) => start.to_vec(),
+            None => {
+                // The start: every reading taken as its value.
+                let mut gram_all = gram_above.clone();
+                let mut products_all = products_above.clone();
+                for &i in &floor_rows {
+                    row_into(columns, i, &mut x);
+                    let y = self.residual[i];
+                    for a in 0..p {
+                        products_all[a] += x[a] * y;
+                        for b in 0..=a {
+                            gram_all[a * p + b] += x[a] * x[b];
+                        }
+                    }
+                }
+                symmetrise(&mut gram_all, p);
+                cholesky_solve(&cholesky(&gram_all, p)?, p, &products_all)
+            }
+        };
         // σ² × the log-likelihood (up to a constant): −½ Σ (y − m)² above the floor, σ² Σ ln Φ
-        // at it.
-        let objective = |beta: &[f64], x: &mut [f64]| -> f64 {
+        // at it. Each reading at the floor's z and Φ(z) are kept in `at` for the Newton step
+        // that follows an accepted one, which needs them again.
+        let objective = |beta: &[f64], x: &mut [f64], at: &mut Vec<(f64, f64)>| -> f64 {
             let quadratic: f64 = (0..p)
                 .map(|a| beta[a] * (0..p).map(|b| gram_above[a * p + b] * beta[b]).sum::<f64>())
                 .sum();
             let cross: f64 = beta.iter().zip(&products_above).map(|(b, r)| b * r).sum();
             let above = -0.5 * (squares_above - 2.0 * cross + quadratic);
+            at.clear();
             let at_floor: f64 = floor_rows
                 .iter()
                 .map(|&i| {
                     row_into(columns, i, x);
                     let m: f64 = x.iter().zip(beta).map(|(x, b)| x * b).sum();
-                    ln_standard_normal_cdf((self.residual[i] - m) / sigma)
+                    let z = (self.residual[i] - m) / sigma;
+                    let cdf = standard_normal_cdf(z);
+                    at.push((z, cdf));
+                    ln_standard_normal_cdf_given(z, cdf)
                 })
                 .sum();
             above + sigma * sigma * at_floor
         };
-        let mut current = objective(&beta, &mut x);
+        let mut at = Vec::with_capacity(floor_rows.len());
+        let mut trial_at = Vec::with_capacity(floor_rows.len());
+        let mut current = objective(&beta, &mut x, &mut at);
         for _ in 0..MAX_STEPS {
             // Gradient and (negated) Hessian, both × σ².
             let mut gradient: Vec<f64> = (0..p)
@@ -177,11 +203,9 @@ impl CutOffReadings {
                 })
                 .collect();
             let mut curvature = gram_above.clone();
-            for &i in &floor_rows {
+            for (&i, &(z, cdf)) in floor_rows.iter().zip(&at) {
                 row_into(columns, i, &mut x);
-                let m: f64 = x.iter().zip(&beta).map(|(x, b)| x * b).sum();
-                let z = (self.residual[i] - m) / sigma;
-                let lambda = inverse_mills_ratio(z);
+                let lambda = inverse_mills_ratio_given(z, cdf);
                 let weight = (lambda * (lambda + z)).clamp(0.0, 1.0);
                 for a in 0..p {
                     gradient[a] -= sigma * lambda * x[a];
@@ -196,7 +220,7 @@ impl CutOffReadings {
             let mut accepted = None;
             for _ in 0..MAX_HALVINGS {
                 let trial: Vec<f64> = beta.iter().zip(&step).map(|(b, s)| b + t * s).collect();
-                let value = objective(&trial, &mut x);
+                let value = objective(&trial, &mut x, &mut trial_at);
                 if value >= current {
                     accepted = Some((trial, value));
                     break;
@@ -212,6 +236,7 @@ impl CutOffReadings {
                 .all(|(b, t)| (t - b).abs() <= 1e-10 * (1.0 + b.abs()));
             beta = trial;
             current = value;
+            std::mem::swap(&mut at, &mut trial_at);
             if moved {
                 break;
             }
@@ -225,6 +250,7 @@ impl CutOffReadings {
     pub fn held_out_errors(&self, columns: &[&[f64]], blocks: &Blocks) -> Option<Vec<f64>> {
         let n = self.residual.len();
         let mut errors = vec![0.0; n];
+        let mut previous: Option<Vec<f64>> = None;
         for fold in &blocks.folds {
             let mut training = vec![true; n];
             for b in fold.excluded.clone() {
@@ -232,13 +258,14 @@ impl CutOffReadings {
                     training[i] = false;
                 }
             }
-            let beta = self.fit(columns, &training)?;
+            let beta = self.fit_from(columns, &training, previous.as_deref())?;
             for b in fold.test.clone() {
                 for i in blocks.ranges[b].clone() {
                     let m: f64 = columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum();
                     errors[i] = self.residual[i] - self.reading(i, m);
                 }
             }
+            previous = Some(beta);
         }
         Some(errors)
     }
@@ -260,10 +287,11 @@ fn symmetrise(matrix: &mut [f64], p: usize) {
     }
 }
 
-/// ln Φ(z), kept finite far in the lower tail where Φ underflows.
-fn ln_standard_normal_cdf(z: f64) -> f64 {
-    if z > -30.0 {
-        standard_normal_cdf(z).ln()
+/// ln Φ(z) where Φ(z) is already known (`cdf`), kept finite far in the lower tail where Φ
+/// underflows.
+fn ln_standard_normal_cdf_given(z: f64, cdf: f64) -> f64 {
+    if z > NORMAL_TAIL_FROM {
+        cdf.ln()
     } else {
         let w = 1.0 / (z * z);
         -0.5 * z * z - (-z).ln() - 0.5 * (2.0 * std::f64::consts::PI).ln()
@@ -364,11 +392,34 @@ mod tests {
     }
 
     #[test]
+    fn a_fit_started_elsewhere_reaches_the_same_coefficients() {
+        let zero = falling_zero();
+        let columns = zero.columns();
+        // The first half hour left out, as a fold leaves out its blocks.
+        let training: Vec<bool> = (0..zero.ones.len()).map(|i| i >= 1800).collect();
+        let from_values = zero.readings.fit(&columns, &training).expect("a fit");
+        // Far from the optimum, on the wrong side of the floor: a drift upwards.
+        let from_far = zero
+            .readings
+            .fit_from(&columns, &training, Some(&[-1.0, 0.5]))
+            .expect("a fit");
+        for (a, b) in from_values.iter().zip(&from_far) {
+            assert!((a - b).abs() < 1e-8, "{from_values:?} against {from_far:?}");
+        }
+        assert!(
+            (from_far[1] + 0.4).abs() < 0.005,
+            "drift {} A/h",
+            from_far[1]
+        );
+    }
+
+    #[test]
     fn ln_phi_joins_its_tail_form() {
         for z in [-29.999, -30.0, -30.001] {
             let exact = (0.5 * statrs::function::erf::erfc(-z / std::f64::consts::SQRT_2)).ln();
             assert!(
-                (ln_standard_normal_cdf(z) - exact).abs() < 1e-6 * exact.abs(),
+                (ln_standard_normal_cdf_given(z, standard_normal_cdf(z)) - exact).abs()
+                    < 1e-6 * exact.abs(),
                 "{z}"
             );
         }
