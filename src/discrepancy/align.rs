@@ -618,6 +618,12 @@ impl<'a> Aligned<'a> {
             joined
         };
         match self.censoring {
+            Some(c) if c.standstill_spans == 0 => format!(
+                "{joined}; the real target reads exactly {} in {:.1} % of the rows, where the simulation never sits (an instrument that cannot read below it, whose zero lies below the floor there), so those readings are taken as bounds (noise σ = {:.4}, from sample to sample above the floor)",
+                c.floor,
+                100.0 * c.share_at_floor,
+                c.sigma,
+            ),
             Some(c) => format!(
                 "{joined}; the real target reads exactly {} in {:.1} % of the rows (an instrument that cannot read below it), so the simulation is compared as it would read: in each of the {} stretches where it sits at that floor it is raised by what the floor adds to the mean reading there, leaving the instrument's own level μ in the residual (noise σ = {:.4} about that level){}",
                 c.floor,

@@ -26,6 +26,7 @@
 
 use statrs::distribution::{ContinuousCDF, Normal};
 
+use crate::fit::autocorrelation::white_noise_of_steps;
 use crate::fit::distributions::{standard_normal_cdf, standard_normal_pdf};
 
 /// Fewest readings at the floor that identify one (and estimate the noise there).
@@ -135,8 +136,10 @@ pub fn floor_of(real: &[f64]) -> Option<f64> {
 
 impl Censoring {
     /// Detects a floor in `real` and estimates its noise where `sim` is at the floor. `None`
-    /// when the real recording has no point mass at its minimum, the simulation is never at
-    /// the floor, or there is no noise to cut off.
+    /// when the real recording has no point mass at its minimum or there is no noise to cut
+    /// off. A simulation that never sits at the floor (an axis holding its position draws a
+    /// current) leaves the readings there to a sensor whose zero lies below it: the noise is
+    /// then measured from sample to sample between readings above the floor.
     pub fn detect(real: &[f64], sim: &[f64]) -> Option<Censoring> {
         let n = real.len().min(sim.len());
         let (real, sim) = (&real[..n], &sim[..n]);
@@ -150,7 +153,21 @@ impl Censoring {
             .zip(sim)
             .filter(|(_, s)| **s <= floor)
             .map(|(r, _)| *r);
-        let sigma_overall = cut_off_fit(standstill_readings, floor)?.sigma;
+        let sigma_overall = match cut_off_fit(standstill_readings, floor) {
+            Some(fit) => fit.sigma,
+            None if sim.iter().all(|s| *s > floor) => {
+                let above = |i: usize| real[i] > floor && real[i].is_finite() && sim[i].is_finite();
+                let steps: Vec<f64> = (1..n)
+                    .filter(|&i| above(i) && above(i - 1))
+                    .map(|i| (real[i] - sim[i]) - (real[i - 1] - sim[i - 1]))
+                    .collect();
+                if steps.len() < MIN_AT_FLOOR {
+                    return None;
+                }
+                Some(white_noise_of_steps(steps)).filter(|s| *s > 0.0)?
+            }
+            None => return None,
+        };
         // The scatter about the level is measured span by span, so that a level wandering
         // from one standstill to the next is not counted as scatter.
         let spans = standstill_spans(sim, floor);
