@@ -78,6 +78,16 @@ impl CutOffReadings {
         })
     }
 
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.residual.len()
+    }
+
+    /// True when there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.residual.is_empty()
+    }
+
     /// The residual the instrument would show at `row` for a model value `value` (relative to
     /// the simulation): E[max(bound, value + e)], the bound being where the floor lies.
     pub fn reading(&self, row: usize, value: f64) -> f64 {

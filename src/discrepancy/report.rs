@@ -31,6 +31,10 @@ pub struct FitQuality {
 /// ([`Finding::judged_after_refit`]), in the text summary and the Model lab alike.
 pub const JUDGED_AFTER_REFIT: &str = "found with the corrections before it refitted beside it: as they stood, it did not clear the surrogates";
 
+/// What the report says of a finding accepted on a censored target's readings at the floor
+/// taken as bounds ([`Finding::judged_on_bounds`]).
+pub const JUDGED_ON_BOUNDS: &str = "found on the readings at the instrument's floor taken as bounds: with them taken as values it did not clear the surrogates; its p-value is a sign-flip test of what it saves in each fold";
+
 /// A missing physics found, with its fitted correction.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Finding {
@@ -60,6 +64,10 @@ pub struct Finding {
     /// Accepted only once the corrections found before it were refitted beside it (as they
     /// stood, it did not clear the surrogates): `p_value` is that of the refitted gain.
     pub judged_after_refit: bool,
+    /// Accepted only on a censored target's readings at the floor taken as bounds: with them
+    /// taken as values it did not clear the surrogates. `p_value` is then the one-sided
+    /// sign-flip test of the held-out error on bounds it saves in each fold.
+    pub judged_on_bounds: bool,
     /// The next best other physics at this step, with their gains relative to this one's.
     pub alternatives: Vec<Alternative>,
 }
@@ -229,6 +237,9 @@ pub struct StepTrace {
     /// having not been significant beside them as they stood; its gain and p-values are then
     /// the refitted model's.
     pub after_refit: bool,
+    /// Whether it was accepted on a censored target's readings at the floor taken as bounds,
+    /// having been refused on them taken as values; its gain and p-value are then those.
+    pub on_bounds: bool,
 }
 
 /// The whole analysis.
@@ -354,6 +365,9 @@ impl DiscrepancyReport {
             }
             if f.judged_after_refit {
                 let _ = writeln!(s, "     {JUDGED_AFTER_REFIT}");
+            }
+            if f.judged_on_bounds {
+                let _ = writeln!(s, "     {JUDGED_ON_BOUNDS}");
             }
             if !f.indistinguishable_from.is_empty() {
                 let _ = writeln!(

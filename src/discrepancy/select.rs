@@ -113,6 +113,10 @@ pub struct Step {
     /// `accepted_after_refit`): `gain`, `p_value`, `tail_p` and the runners-up's gains are
     /// those of the refitted models.
     pub after_refit: bool,
+    /// Refused on the readings as compared, accepted on a censored target's readings at the
+    /// floor taken as bounds (`accepted_on_bounds` in `super`): `gain`, `sse_before` and
+    /// `p_value` (a paired test over the held-out blocks; `tail_p` the same) are those.
+    pub on_bounds: bool,
 }
 
 /// The binned problem the selection works on.
@@ -670,6 +674,7 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
                 indistinguishable: Vec::new(),
                 masked_by: Some(pair.partner),
                 after_refit: false,
+                on_bounds: false,
             });
             watch.report(at(0.7), || {
                 format!("selection step {}: refitting the corrections", step + 1)
@@ -712,6 +717,7 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
                     indistinguishable: Vec::new(),
                     masked_by: None,
                     after_refit: true,
+                    on_bounds: false,
                 });
                 *model = refitted;
                 chosen_kinds.push(problem.families[problem.members[member].family].kind);
@@ -826,6 +832,7 @@ pub fn stepwise<M: JointModel + Clone + Send + Sync>(
             indistinguishable,
             masked_by: None,
             after_refit: false,
+            on_bounds: false,
         });
         let Some(columns) = refitted else {
             // Nothing more is significant in this model; if keeping its corrections within

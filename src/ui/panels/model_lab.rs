@@ -250,9 +250,14 @@ pub fn result_ui(ui: &mut egui::Ui, r: &DiscrepancyResultView) {
             .collect();
         ui.monospace(parameters.join(";  "));
         ui.label(format!("signals: {}", f.signals));
-        for note in [&f.indistinguishable, &f.masked_by, &f.judged_after_refit]
-            .into_iter()
-            .flatten()
+        for note in [
+            &f.indistinguishable,
+            &f.masked_by,
+            &f.judged_after_refit,
+            &f.judged_on_bounds,
+        ]
+        .into_iter()
+        .flatten()
         {
             ui.label(note);
         }

@@ -64,6 +64,9 @@ pub struct FindingView {
     /// "found with the corrections before it refitted beside it …", when it was accepted
     /// only after that refit.
     pub judged_after_refit: Option<String>,
+    /// "found on the readings at the instrument's floor taken as bounds …", when it was
+    /// accepted only on those.
+    pub judged_on_bounds: Option<String>,
 }
 
 /// R² and RMSE of one stage.
@@ -272,6 +275,9 @@ pub fn result_view(outcome: &DiscrepancyOutcome, max_points: usize) -> Discrepan
                 judged_after_refit: f
                     .judged_after_refit
                     .then(|| crate::discrepancy::JUDGED_AFTER_REFIT.to_string()),
+                judged_on_bounds: f
+                    .judged_on_bounds
+                    .then(|| crate::discrepancy::JUDGED_ON_BOUNDS.to_string()),
             })
             .collect(),
         notes,
