@@ -2665,4 +2665,23 @@ mod tests {
         });
         assert_eq!(asked.into_inner().expect("not poisoned"), (100, true));
     }
+
+    #[test]
+    fn the_fold_sign_flip_test_counts_the_patterns_at_least_as_good() {
+        // Every fold better: only the pattern observed reaches its total.
+        let every = [1.0, 2.0, 0.5, 3.0, 1.0, 1.0, 2.0, 0.1];
+        assert_eq!(fold_sign_flip_p(&every, 1), 1.0 / 256.0);
+        // Every fold worse: every pattern is at least as good.
+        let worse: Vec<f64> = every.iter().map(|d| -d).collect();
+        assert_eq!(fold_sign_flip_p(&worse, 1), 1.0);
+        // One small loss beside larger gains: the observed pattern and the one with that
+        // fold's sign turned (every fold a gain) reach its total; turning any other does not.
+        let one_loss = [1.0, 2.0, 0.5, 3.0, 1.0, 1.0, 2.0, -0.1];
+        assert_eq!(fold_sign_flip_p(&one_loss, 1), 2.0 / 256.0);
+        // Past the exact count the patterns are drawn: about one in 2^20 reaches all positive,
+        // so the observed one alone counts.
+        let many = [1.0; 20];
+        let p = fold_sign_flip_p(&many, 7);
+        assert!(p > 0.0 && p < 1e-4, "{p}");
+    }
 }
