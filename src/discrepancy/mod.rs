@@ -536,31 +536,30 @@ fn block_sse_on_bounds(
 }
 
 /// Of the corrections `columns` (but the one at `keep`), those `eligible` whose absence does
-/// not raise the held-out error on bounds, the one whose absence lowers it most; `None` when
-/// each adds something, or a fold cannot be fitted.
+/// not raise the held-out error on bounds above `all` (theirs together), the one whose
+/// absence lowers it most, with the error without it; `None` when each adds something.
 fn nothing_on_bounds(
     readings: &CutOffReadings,
     columns: &[Vec<Vec<f64>>],
+    all: f64,
     keep: usize,
     eligible: impl Fn(usize) -> bool,
     blocks: &Blocks,
-) -> Option<usize> {
-    let sse_without = |left_out: Option<usize>| -> Option<f64> {
+) -> Option<(usize, f64)> {
+    let sse_without = |left_out: usize| -> Option<f64> {
         let raw: Vec<Vec<f64>> = columns
             .iter()
             .enumerate()
-            .filter(|(k, _)| Some(*k) != left_out)
+            .filter(|(k, _)| *k != left_out)
             .flat_map(|(_, c)| c.iter().cloned())
             .collect();
         Some(block_sse_on_bounds(readings, &raw, blocks)?.iter().sum())
     };
-    let all = sse_without(None)?;
     (0..columns.len())
         .filter(|&k| k != keep && eligible(k))
-        .filter_map(|k| Some((k, sse_without(Some(k))?)))
+        .filter_map(|k| Some((k, sse_without(k)?)))
         .filter(|(_, without)| *without <= all)
         .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(k, _)| k)
 }
 
 /// Folds beyond which [`fold_sign_flip_p`] draws its sign patterns instead of taking all.
@@ -1163,20 +1162,23 @@ fn analyse_with(
         selected_columns.push(found.columns);
         // The corrections chosen on the readings as values are asked again beside it, on the
         // readings as bounds: one that adds nothing held out there was fitted to the floor.
+        let mut all = found.after;
         loop {
             let physics: Vec<bool> = selected
                 .iter()
                 .map(|s| matches!(families[s.family].kind, Kind::Physics(_)))
                 .collect();
-            let Some(k) = nothing_on_bounds(
+            let Some((k, without)) = nothing_on_bounds(
                 &found.readings,
                 &selected_columns,
+                all,
                 selected.len() - 1,
                 |k| physics[k],
                 &full_blocks,
             ) else {
                 break;
             };
+            all = without;
             withdrawn[selected[k].step_index] = true;
             selected.remove(k);
             selected_columns.remove(k);
@@ -1256,6 +1258,10 @@ fn analyse_with(
     // Each correction's own share in the joint model: the held-out R² lost without it.
     let without: Vec<FitQuality> = (0..selected.len())
         .map(|k| {
+            // Without the last, the model is the one after the step before it, measured above.
+            if k + 1 == selected.len() {
+                return held_out[k];
+            }
             let mut columns: Vec<&[f64]> = vec![&ones];
             columns.extend(
                 design[1..]
