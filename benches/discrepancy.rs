@@ -19,6 +19,10 @@ use servosight::discrepancy::{Options, analyse};
 use servosight::signal::{AxisId, Quantity, Recording, axis_column};
 use servosight::sim::{Effect, EffectSet, ScenarioKind, TwinConfig, simulate};
 
+#[path = "../tests/sensor_zero.rs"]
+mod sensor_zero;
+use sensor_zero::with_zero_falling;
+
 /// The simulation without `effect` and the real run, 100,000 rows each.
 fn pair(effect: Effect) -> (Recording, Recording) {
     let hours = 100_000.0 / 3600.0;
@@ -29,24 +33,6 @@ fn pair(effect: Effect) -> (Recording, Recording) {
     let real = simulate(real_config).expect("twin runs");
     let sim = simulate(sim_config).expect("twin runs");
     (sim, real)
-}
-
-/// `recording` with `column` read by a sensor whose zero falls `per_hour` from the first row,
-/// cut off at 0 as a drive reports a magnitude.
-fn with_zero_falling(recording: &Recording, column: &str, per_hour: f64) -> Recording {
-    let index = recording
-        .schema()
-        .index_of(column)
-        .expect("the column is recorded");
-    let mut read =
-        Recording::with_schema(recording.source().to_string(), recording.schema().clone());
-    let mut row = Vec::new();
-    for i in 0..recording.len() {
-        recording.row_into(i, &mut row);
-        row[index] = (row[index] - per_hour * recording.time()[i] / 3600.0).max(0.0);
-        read.push_row(&row).expect("rows of a valid recording");
-    }
-    read
 }
 
 fn discrepancy_speed(c: &mut Criterion) {

@@ -8,6 +8,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::sensor_zero::with_zero_falling;
 use rand::{Rng, SeedableRng};
 use servosight::discrepancy::{DiscrepancyReport, Options, Verdict, analyse};
 use servosight::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
@@ -736,24 +737,6 @@ fn a_current_whose_offset_wanders_for_an_hour_is_still_consistent() {
         let censoring = report.alignment.censoring.expect("clipped at zero");
         assert!(censoring.spans_levelled_beside > 0, "{censoring:?}");
     }
-}
-
-/// `recording` with `column` read by a sensor whose zero falls `per_hour` from the first row,
-/// cut off at 0 as a drive reports a magnitude.
-fn with_zero_falling(recording: &Recording, column: &str, per_hour: f64) -> Recording {
-    let index = recording
-        .schema()
-        .index_of(column)
-        .expect("the column is recorded");
-    let mut read =
-        Recording::with_schema(recording.source().to_string(), recording.schema().clone());
-    let mut row = Vec::new();
-    for i in 0..recording.len() {
-        recording.row_into(i, &mut row);
-        row[index] = (row[index] - per_hour * recording.time()[i] / 3600.0).max(0.0);
-        read.push_row(&row).expect("rows of a valid recording");
-    }
-    read
 }
 
 /// A current sensor's zero falling through the floor puts most readings at 0 A, whatever the

@@ -11,6 +11,7 @@ mod fit;
 mod link_replay;
 mod modbus_peer;
 mod recording_format;
+mod sensor_zero;
 mod simulate_cli;
 mod ui_hmi;
 mod ui_view_models;
