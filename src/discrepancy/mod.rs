@@ -451,7 +451,7 @@ struct OnBounds {
     before: f64,
     /// …and with it.
     after: f64,
-    /// The one-sided paired test of the blocks' errors with and without it.
+    /// The sign-flip test of what it saves in each fold ([`fold_sign_flip_p`]).
     p_value: f64,
 }
 
@@ -1132,6 +1132,7 @@ fn analyse_with(
         .iter()
         .map(|s| build(&families[s.family], ctx_of(s.family), &s.theta))
         .collect();
+    let mut entered_on_bounds = false;
     if read_later.is_none()
         && let Some(found) = accepted_on_bounds(
             &aligned,
@@ -1146,6 +1147,7 @@ fn analyse_with(
         )
         && let Some(step) = steps.last_mut()
     {
+        entered_on_bounds = true;
         step.accepted = true;
         step.on_bounds = true;
         step.gain = found.before - found.after;
@@ -1198,6 +1200,8 @@ fn analyse_with(
     // does not put them (its zero drifting down): the corrections refitted to those readings
     // as bounds, kept where they predict the held-out readings clearly better. Every held-out
     // figure below is then of that fit, so that the findings' shares compare like with like.
+    // A step that entered on bounds was judged there, and its figures are those whatever the
+    // comparison says.
     let cut_off = aligned
         .censoring
         .filter(|_| read_later.is_none())
@@ -1208,7 +1212,7 @@ fn analyse_with(
             let as_bounds: f64 = errors.iter().map(|e| e * e).sum();
             let as_compared = held_out_sse(&design, &residual, &full_blocks);
             let rmse = |sse: f64| (sse / n.max(1) as f64).sqrt();
-            (as_bounds < (1.0 - CUT_OFF_MIN_GAIN) * as_compared).then(|| {
+            (entered_on_bounds || as_bounds < (1.0 - CUT_OFF_MIN_GAIN) * as_compared).then(|| {
                 let figures = ReadingsAsBounds {
                     held_out_rmse: rmse(as_bounds),
                     held_out_rmse_as_compared: rmse(as_compared),

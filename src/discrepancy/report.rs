@@ -230,8 +230,10 @@ pub struct StepTrace {
     /// Whether it entered the model.
     pub accepted: bool,
     /// Whether it was withdrawn again: when a later correction, refitted jointly with it,
-    /// explained what it had taken (backward elimination), or when on all rows it proved
-    /// empty (smaller than a quarter of the sample noise and adding nothing held out).
+    /// explained what it had taken (backward elimination), when on all rows it proved empty
+    /// (smaller than a quarter of the sample noise and adding nothing held out), or when,
+    /// beside a step that entered on a censored target's readings as bounds, it added nothing
+    /// held out there.
     pub withdrawn: bool,
     /// Whether it was accepted on what it explains with every correction refitted beside it,
     /// having not been significant beside them as they stood; its gain and p-values are then
