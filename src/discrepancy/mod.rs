@@ -451,6 +451,8 @@ struct OnBounds {
     before: f64,
     /// …and with it.
     after: f64,
+    /// The held-out errors on bounds with it, row by row.
+    errors_after: Vec<f64>,
     /// The sign-flip test of what it saves in each fold ([`fold_sign_flip_p`]).
     p_value: f64,
 }
@@ -493,9 +495,10 @@ fn accepted_on_bounds(
         return None;
     }
     let mut raw: Vec<Vec<f64>> = selected_columns.iter().flatten().cloned().collect();
-    let without = block_sse_on_bounds(&readings, &raw, blocks)?;
+    let without = block_sums(&held_out_on_bounds(&readings, &raw, blocks)?, blocks);
     raw.extend(candidate.iter().cloned());
-    let with = block_sse_on_bounds(&readings, &raw, blocks)?;
+    let errors_after = held_out_on_bounds(&readings, &raw, blocks)?;
+    let with = block_sums(&errors_after, blocks);
     let before: f64 = without.iter().sum();
     let after: f64 = with.iter().sum();
     let by_fold: Vec<f64> = blocks
@@ -510,13 +513,15 @@ fn accepted_on_bounds(
             columns: candidate,
             before,
             after,
+            errors_after,
             p_value,
         })
 }
 
-/// Held-out squared errors on bounds ([`CutOffReadings::held_out_errors`]), block by block, of
-/// the offset and the `raw` columns standardised; `None` where a fold cannot be fitted.
-fn block_sse_on_bounds(
+/// Held-out errors on bounds ([`CutOffReadings::held_out_errors`]) of the offset and the
+/// `raw` columns standardised, as the report's final design is built; `None` where a fold
+/// cannot be fitted.
+fn held_out_on_bounds(
     readings: &CutOffReadings,
     raw: &[Vec<f64>],
     blocks: &Blocks,
@@ -525,19 +530,22 @@ fn block_sse_on_bounds(
     let (standard, _) = standardised(raw);
     let mut design: Vec<&[f64]> = vec![&ones];
     design.extend(standard.iter().map(Vec::as_slice));
-    let errors = readings.held_out_errors(&design, blocks)?;
-    Some(
-        blocks
-            .ranges
-            .iter()
-            .map(|r| errors[r.clone()].iter().map(|e| e * e).sum())
-            .collect(),
-    )
+    readings.held_out_errors(&design, blocks)
+}
+
+/// Squared `errors` summed block by block.
+fn block_sums(errors: &[f64], blocks: &Blocks) -> Vec<f64> {
+    blocks
+        .ranges
+        .iter()
+        .map(|r| errors[r.clone()].iter().map(|e| e * e).sum())
+        .collect()
 }
 
 /// Of the corrections `columns` (but the one at `keep`), those `eligible` whose absence does
 /// not raise the held-out error on bounds above `all` (theirs together), the one whose
-/// absence lowers it most, with the error without it; `None` when each adds something.
+/// absence lowers it most, with the held-out errors without it; `None` when each adds
+/// something.
 fn nothing_on_bounds(
     readings: &CutOffReadings,
     columns: &[Vec<Vec<f64>>],
@@ -545,21 +553,22 @@ fn nothing_on_bounds(
     keep: usize,
     eligible: impl Fn(usize) -> bool,
     blocks: &Blocks,
-) -> Option<(usize, f64)> {
-    let sse_without = |left_out: usize| -> Option<f64> {
+) -> Option<(usize, Vec<f64>)> {
+    let errors_without = |left_out: usize| -> Option<Vec<f64>> {
         let raw: Vec<Vec<f64>> = columns
             .iter()
             .enumerate()
             .filter(|(k, _)| *k != left_out)
             .flat_map(|(_, c)| c.iter().cloned())
             .collect();
-        Some(block_sse_on_bounds(readings, &raw, blocks)?.iter().sum())
+        held_out_on_bounds(readings, &raw, blocks)
     };
+    let sse = |errors: &[f64]| errors.iter().map(|e| e * e).sum::<f64>();
     (0..columns.len())
         .filter(|&k| k != keep && eligible(k))
-        .filter_map(|k| Some((k, sse_without(k)?)))
-        .filter(|(_, without)| *without <= all)
-        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .filter_map(|k| Some((k, errors_without(k)?)))
+        .filter(|(_, without)| sse(without) <= all)
+        .min_by(|a, b| sse(&a.1).total_cmp(&sse(&b.1)))
 }
 
 /// Folds beyond which [`fold_sign_flip_p`] draws its sign patterns instead of taking all.
@@ -1132,7 +1141,9 @@ fn analyse_with(
         .iter()
         .map(|s| build(&families[s.family], ctx_of(s.family), &s.theta))
         .collect();
-    let mut entered_on_bounds = false;
+    // A step that entered on bounds leaves the readings and the final model's held-out
+    // errors on them, which the figures below take as they are.
+    let mut entered_on_bounds: Option<(CutOffReadings, Vec<f64>)> = None;
     if read_later.is_none()
         && let Some(found) = accepted_on_bounds(
             &aligned,
@@ -1147,7 +1158,6 @@ fn analyse_with(
         )
         && let Some(step) = steps.last_mut()
     {
-        entered_on_bounds = true;
         step.accepted = true;
         step.on_bounds = true;
         step.gain = found.before - found.after;
@@ -1165,6 +1175,7 @@ fn analyse_with(
         // The corrections chosen on the readings as values are asked again beside it, on the
         // readings as bounds: one that adds nothing held out there was fitted to the floor.
         let mut all = found.after;
+        let mut errors = found.errors_after;
         loop {
             let physics: Vec<bool> = selected
                 .iter()
@@ -1180,11 +1191,13 @@ fn analyse_with(
             ) else {
                 break;
             };
-            all = without;
+            all = without.iter().map(|e| e * e).sum();
+            errors = without;
             withdrawn[selected[k].step_index] = true;
             selected.remove(k);
             selected_columns.remove(k);
         }
+        entered_on_bounds = Some((found.readings, errors));
     }
     let ones = vec![1.0; n];
     let raw: Vec<Vec<f64>> = selected_columns.iter().flatten().cloned().collect();
@@ -1202,17 +1215,24 @@ fn analyse_with(
     // figure below is then of that fit, so that the findings' shares compare like with like.
     // A step that entered on bounds was judged there, and its figures are those whatever the
     // comparison says.
+    let entered = entered_on_bounds.is_some();
     let cut_off = aligned
         .censoring
         .filter(|_| read_later.is_none())
         .and_then(|censoring| {
-            let sim = aligned.sim_column(target)?;
-            let readings = CutOffReadings::new(&censoring, &aligned.real_target, &sim)?;
-            let errors = readings.held_out_errors(&design, &full_blocks)?;
+            let (readings, errors) = match entered_on_bounds {
+                Some(measured) => measured,
+                None => {
+                    let sim = aligned.sim_column(target)?;
+                    let readings = CutOffReadings::new(&censoring, &aligned.real_target, &sim)?;
+                    let errors = readings.held_out_errors(&design, &full_blocks)?;
+                    (readings, errors)
+                }
+            };
             let as_bounds: f64 = errors.iter().map(|e| e * e).sum();
             let as_compared = held_out_sse(&design, &residual, &full_blocks);
             let rmse = |sse: f64| (sse / n.max(1) as f64).sqrt();
-            (entered_on_bounds || as_bounds < (1.0 - CUT_OFF_MIN_GAIN) * as_compared).then(|| {
+            (entered || as_bounds < (1.0 - CUT_OFF_MIN_GAIN) * as_compared).then(|| {
                 let figures = ReadingsAsBounds {
                     held_out_rmse: rmse(as_bounds),
                     held_out_rmse_as_compared: rmse(as_compared),
