@@ -1228,19 +1228,28 @@ pub(super) fn delay_sentence(target: &str, delay_s: f64, share: f64) -> String {
     }
 }
 
-/// Whether the target warms with a winding (positive), cools as it warms (negative) or cannot
-/// tell (zero, without the winding's signal): a temperature always warms with it; anything
-/// else (a growth) by the sign of its simulated course's covariance with `winding`.
+/// How far the target moves per kelvin of a winding by the simulation's own reckoning, whose
+/// sign says whether it warms with the winding (positive), cools as it warms (negative) or
+/// cannot tell (zero, without the winding's signal): 1 on a temperature, which always warms
+/// with it and by no more than it; anything else (a growth) by the least-squares slope of its
+/// simulated course on `winding`.
 fn warms_with_winding(ctx: &Context, winding: Option<&[f64]>) -> f64 {
     match ctx.class {
         TargetClass::Temperature => 1.0,
         _ => winding.map_or(0.0, |winding| {
             let (s, w) = (mean(&ctx.sim), mean(winding));
-            ctx.sim
+            let (covariance, variance) = ctx
+                .sim
                 .iter()
                 .zip(winding)
-                .map(|(a, b)| (a - s) * (b - w))
-                .sum()
+                .fold((0.0, 0.0), |(c, v), (a, b)| {
+                    (c + (a - s) * (b - w), v + (b - w) * (b - w))
+                });
+            if variance > 0.0 {
+                covariance / variance
+            } else {
+                0.0
+            }
         }),
     }
 }
@@ -2457,18 +2466,18 @@ fn winding_mismatch_family(
         // independent check's front bearing with thermal inertia left out, a member free of
         // any limit read −3.7 K/K (−17 K/K while the coolant flows) through a lag 2.6 × the
         // recording and was named before the part's own physics.
-        let slack = 0.1 * own_gain_per_winding_kelvin(ctx, simulated);
+        let slack = 0.1 * warms_with_winding.abs();
         let limits: Vec<GainLimit> = limit
             .into_iter()
             .flat_map(|limit| {
-                let loose = if limit.max == 0.0 {
+                let loose = if warms_with_winding > 0.0 {
                     GainLimit {
-                        max: slack,
+                        min: -slack,
                         ..limit
                     }
                 } else {
                     GainLimit {
-                        min: -slack,
+                        max: slack,
                         ..limit
                     }
                 };
@@ -2515,28 +2524,6 @@ fn winding_mismatch_family(
         Some(axis),
         Start::Rest,
     ))
-}
-
-/// How far the part moves per kelvin of its winding, by the simulation's own reckoning: 1 on
-/// a temperature (a part warms by no more than its winding), and on a displacement the
-/// magnitude of the simulated target's least-squares slope on the simulated winding.
-fn own_gain_per_winding_kelvin(ctx: &Context, simulated_winding: &[f64]) -> f64 {
-    if ctx.class == TargetClass::Temperature {
-        return 1.0;
-    }
-    let (s, w) = (mean(&ctx.sim), mean(simulated_winding));
-    let (covariance, variance) = ctx
-        .sim
-        .iter()
-        .zip(simulated_winding)
-        .fold((0.0, 0.0), |(c, v), (a, b)| {
-            (c + (a - s) * (b - w), v + (b - w) * (b - w))
-        });
-    if variance > 0.0 {
-        (covariance / variance).abs()
-    } else {
-        0.0
-    }
 }
 
 /// Where a member of a [`winding_mismatch_family`] beside a coolant that switches says
