@@ -396,12 +396,12 @@ fn viscosity_left_out_is_named_on_the_parts_through_the_friction_the_drive_measu
 /// the housing gets what the winding kept and the coolant did not take, 2 W/K (the coolant's
 /// conductance, the housing's to the room being 1) times the winding's mismatch, the other
 /// way. The bearing (two thirds of the housing) then runs cooler when the winding runs warmer.
-/// Followed through the winding's mismatch alone, the bearing is left 2.9 × its noise away
-/// out of sample (on the independent check's spindle the analysis had called such a front
-/// bearing consistent); with the coolant's share beside it, the winding's physics is named on
-/// the bearing, with the steady gain while the coolant flows within 15 % of the network's
-/// −2 / 1.5 K/K (−1.195), and the corrected simulation within 1.75 × the thermometer's noise
-/// out of sample (1.64 ×). What is left is the copper's resistance, which rises 0.39 %/K with
+/// Followed through the winding's mismatch alone, the bearing's analysis named nothing and
+/// left it 0.64 °C (13 × its noise) away, as it had called such front bearings of the
+/// independent check's spindle consistent; with the coolant's share beside it, the winding's
+/// physics is named on the bearing, with the steady gain while the coolant flows within 15 %
+/// of the network's −2 / 1.5 K/K (−1.195), and the corrected simulation within 1.75 × the
+/// thermometer's noise out of sample (1.64 ×). What is left is the copper's resistance, which rises 0.39 %/K with
 /// the winding's warmth: the winding's mismatch times the current squared, through the same
 /// lags, takes the bearing from 1.16 × to 1.00 × its noise in sample, and is not offered.
 #[test]
