@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::sensor_zero::with_zero_falling;
+use crate::sensor_zero::{with_column_mapped, with_zero_falling};
 use rand::{Rng, SeedableRng};
 use servosight::discrepancy::{DiscrepancyReport, Options, Verdict, analyse};
 use servosight::signal::{AxisId, Quantity, Recording, axis_column, reference_column};
@@ -1664,23 +1664,6 @@ fn a_simulation_too_sparse_for_its_own_grid_is_compared_on_the_real_one() {
     assert_eq!(report["rows"], 7201);
 }
 
-/// `recording` with `column` replaced by `f(value)`.
-fn with_column_mapped(recording: &Recording, column: &str, f: impl Fn(f64) -> f64) -> Recording {
-    let index = recording
-        .schema()
-        .index_of(column)
-        .expect("the column exists");
-    let mut out =
-        Recording::with_schema(recording.source().to_string(), recording.schema().clone());
-    let mut row = Vec::new();
-    for i in 0..recording.len() {
-        recording.row_into(i, &mut row);
-        row[index] = f(row[index]);
-        out.push_row(&row).expect("mapped values stay valid");
-    }
-    out
-}
-
 /// A simulation that is right but miscalibrated (real = 0.6 K + 1.04 × sim) is calibration,
 /// not physics: verdict consistent, no findings, the gain and offset reported. (With strongly
 /// correlated noise on a slow target a flexible heat correction can out-predict the plain gain
@@ -1700,7 +1683,7 @@ fn a_gain_and_offset_miscalibration_is_calibration_not_physics() {
             seed: 61,
         };
         let pair = make_pair(&case);
-        let sim = with_column_mapped(&pair.sim, &target, |v| (v - 0.6) / 1.04);
+        let sim = with_column_mapped(&pair.sim, &target, |_, v| (v - 0.6) / 1.04);
         let report = analyse(&sim, &pair.real, &target, &Options::default()).unwrap();
         assert_eq!(
             report.verdict,
