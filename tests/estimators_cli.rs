@@ -1022,6 +1022,125 @@ fn estimate_carries_on_across_the_pieces_of_a_recording() {
     );
 }
 
+/// A shift the recorder wrote in pieces, given by its first file alone: the command reads that
+/// file, says on stderr (and `estimate` in its report's notes) which pieces beside it it leaves
+/// out, and `--with-later-pieces` reads them all, in the order of their numbers, as the whole
+/// file. A piece missing from a list is named too; the flag with more than one file is refused,
+/// since which pieces to add would be a guess.
+#[test]
+fn a_recording_given_by_its_first_piece_names_the_pieces_left_out_and_reads_them_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = simulate(
+        dir.path(),
+        "whole.csv",
+        &["--scenario", "production", "--hours", "0.5", "--seed", "4"],
+    );
+    let pieces = dir.path().join("pieces");
+    std::fs::create_dir(&pieces).unwrap();
+    let first = pieces.join("shift.csv");
+    // Numbered as the recorder numbers them; 10000 sorts before 0002 as text, not as a number.
+    let later = [
+        pieces.join("shift-0001.csv"),
+        pieces.join("shift-0002.csv"),
+        pieces.join("shift-10000.csv"),
+    ];
+    rows_between(&whole, &first, 0.0, 400.0);
+    rows_between(&whole, &later[0], 400.0, 900.0);
+    rows_between(&whole, &later[1], 900.0, 1400.0);
+    rows_between(&whole, &later[2], 1400.0, f64::INFINITY);
+    let profile = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/it25-twin.toml");
+    let estimate = |recordings: &[&std::path::Path], flag: bool, name: &str| {
+        let json = dir.path().join(format!("{name}.json"));
+        let mut args = vec!["estimate", "--profile", arg(&profile), "--recording"];
+        args.extend(recordings.iter().map(|r| arg(r)));
+        if flag {
+            args.push("--with-later-pieces");
+        }
+        args.extend(["--json", arg(&json)]);
+        let run = servosight(&args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        (report, stderr(&run))
+    };
+    let (whole_report, said) = estimate(&[&whole], false, "whole");
+    assert!(!said.contains("warning"), "{said}");
+
+    let (alone, said) = estimate(&[&first], false, "alone");
+    let left_out = format!(
+        "the recorder continued {} in {} … {} (3 pieces) beside it, which were not given and \
+         this command leaves out: add --with-later-pieces",
+        first.display(),
+        later[0].display(),
+        later[2].display()
+    );
+    assert!(said.contains(&format!("warning: {left_out}")), "{said}");
+    assert_eq!(alone["rows"], 400);
+    assert!(
+        alone["notes"][0].as_str().unwrap().starts_with(&left_out),
+        "{}",
+        alone["notes"]
+    );
+
+    let (all, said) = estimate(&[&first], true, "all");
+    assert!(
+        said.contains(&format!(
+            "reading {} with the pieces the recorder continued it in: {} … {} (3 pieces)",
+            first.display(),
+            later[0].display(),
+            later[2].display()
+        )),
+        "{said}"
+    );
+    assert_eq!(all, whole_report);
+
+    // A list that skips a piece: the piece is named, and nothing else.
+    let (_, said) = estimate(&[&first, &later[1], &later[2]], false, "skipped");
+    assert!(
+        said.contains(&format!(
+            "the recorder continued {} in {} beside it",
+            first.display(),
+            later[0].display()
+        )),
+        "{said}"
+    );
+
+    let refused = servosight(&[
+        "estimate",
+        "--profile",
+        arg(&profile),
+        "--recording",
+        arg(&first),
+        arg(&later[0]),
+        "--with-later-pieces",
+    ]);
+    assert!(!refused.status.success());
+    assert!(
+        stderr(&refused).contains(
+            "--with-later-pieces finds the pieces after the one file given, and 2 were given to \
+             --recording"
+        ),
+        "{}",
+        stderr(&refused)
+    );
+
+    // Every command that reads one recording takes the flag: `inspect` sums the same rows.
+    let inspect = |files: &[&std::path::Path], flag: bool| {
+        let mut args = vec!["inspect"];
+        args.extend(files.iter().map(|f| arg(f)));
+        if flag {
+            args.push("--with-later-pieces");
+        }
+        args.extend(["--json", "-"]);
+        let run = servosight(&args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let summary: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+        summary["rows"].clone()
+    };
+    assert_eq!(inspect(&[&first], true), inspect(&[&whole], false));
+    assert_eq!(inspect(&[&first], false), 400);
+}
+
 /// The commands that analyse one stretch of a recording — the depth of cut over a day's cuts,
 /// the backlash test and the friction fingerprint of the warm-up moves — read the pieces the
 /// recorder cut it into as one: the same JSON report as the whole file, where the first piece

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::pieces::{LaterPieces, recording_files};
 use crate::servosight_cli::{emit_report, out, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::backlash::{analyse_backlash, nc_program};
@@ -17,6 +18,8 @@ pub struct Args {
     /// recorder's hourly new piece cut in two: test.csv test-0001.csv).
     #[arg(long, required = true, num_args = 1..)]
     pub recording: Vec<PathBuf>,
+    #[command(flatten)]
+    pub pieces: LaterPieces,
     /// The axis tested.
     #[arg(long, value_parser = parse_axis)]
     pub axis: AxisId,
@@ -58,7 +61,8 @@ fn parse_axis(s: &str) -> Result<AxisId, String> {
     s.parse()
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    args.recording = recording_files(&args.recording, &args.pieces, "--recording")?.0;
     let mut inputs: Vec<&std::path::Path> = args.recording.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.profile.as_deref());
     refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;

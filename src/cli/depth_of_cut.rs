@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::pieces::{LaterPieces, recording_files};
 use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::depth_of_cut::recommend_depth_of_cut;
@@ -16,6 +17,8 @@ pub struct Args {
     /// new piece every hour: day.csv, day-0001.csv, …).
     #[arg(long, required = true, num_args = 1..)]
     pub recording: Vec<PathBuf>,
+    #[command(flatten)]
+    pub pieces: LaterPieces,
     /// Machine profile (ratings, margin); default: the twin's machine.
     #[arg(long)]
     pub profile: Option<PathBuf>,
@@ -27,7 +30,8 @@ pub struct Args {
     pub json: Option<PathBuf>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    args.recording = recording_files(&args.recording, &args.pieces, "--recording")?.0;
     let mut inputs: Vec<&std::path::Path> = args.recording.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.profile.as_deref());
     refuse_overwriting_inputs(&inputs, &[args.json.as_deref()])?;

@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::servosight_cli::pieces::{LaterPieces, recording_files};
 use crate::servosight_cli::{emit_report, out, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::discrepancy::{Options, RowBudget, analyse};
@@ -34,6 +35,8 @@ pub struct Args {
     /// shift-0001.csv, …).
     #[arg(long, required = true, num_args = 1..)]
     pub real: Vec<PathBuf>,
+    #[command(flatten)]
+    pub pieces: LaterPieces,
     /// The column to compare (present in both files).
     #[arg(long)]
     pub target: String,
@@ -115,8 +118,9 @@ fn read_for_analysis(
 }
 
 /// Runs `servosight discrepancy`.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
     keep_freed_memory_for_reuse();
+    args.real = recording_files(&args.real, &args.pieces, "--real")?.0;
     let inputs: Vec<&Path> = std::iter::once(args.sim.as_path())
         .chain(args.real.iter().map(PathBuf::as_path))
         .collect();

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::pieces::{LaterPieces, recording_files};
 use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::estimators::abnormality::{AbnormalityState, judge};
@@ -23,6 +24,8 @@ pub struct Args {
     /// shift-0001.csv, …): the estimators carry on from piece to piece.
     #[arg(long, required = true, num_args = 1..)]
     pub recording: Vec<PathBuf>,
+    #[command(flatten)]
+    pub pieces: LaterPieces,
     /// Write the estimates (time plus one column per estimate) to this CSV. An estimate that is
     /// not known in every row is 0 where unknown and has a `<column>_valid` 0/1 column.
     #[arg(short = 'o', long = "output")]
@@ -162,7 +165,9 @@ fn write_estimates(
     Ok(())
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    let (files, left_out) = recording_files(&args.recording, &args.pieces, "--recording")?;
+    args.recording = files;
     anyhow::ensure!(
         !args
             .output
@@ -225,7 +230,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 counted_from,
             })
             .collect(),
-        notes: series.notes.clone(),
+        // What was left out of the recording first: it bears on every figure after it.
+        notes: left_out
+            .into_iter()
+            .chain(series.notes.iter().cloned())
+            .collect(),
     };
     emit_report(args.json.as_deref(), &report, || {
         if rows.is_empty() {
@@ -321,6 +330,7 @@ mod tests {
             recording: vec![recording.clone()],
             output: Some(output.clone()),
             json: None,
+            pieces: LaterPieces::default(),
         };
         write_estimates(&output, &args, &profile, &first).unwrap();
         assert!(long.len() > first.rows);

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::pieces::{LaterPieces, recording_files};
 use crate::servosight_cli::{outln, refuse_overwriting_inputs, text_report_wanted};
 use anyhow::Context;
 use servosight::estimators::fingerprint::{
@@ -24,6 +25,8 @@ pub struct Args {
     /// hourly new piece cut in two: warmup.csv warmup-0001.csv).
     #[arg(long, required = true, num_args = 1..)]
     pub recording: Vec<PathBuf>,
+    #[command(flatten)]
+    pub pieces: LaterPieces,
     /// The axis.
     #[arg(long, value_parser = parse_axis)]
     pub axis: AxisId,
@@ -52,7 +55,8 @@ struct Report {
     preload: Option<servosight::estimators::fingerprint::PreloadDiagnosis>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    args.recording = recording_files(&args.recording, &args.pieces, "--recording")?.0;
     let mut inputs: Vec<&std::path::Path> = args.recording.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.profile.as_deref());
     // Saving the new baseline over the one compared with is how a baseline is renewed; the

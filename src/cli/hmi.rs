@@ -19,6 +19,9 @@ pub struct Args {
     /// one every hour: `shift.csv shift-0001.csv …`), replayed as one.
     #[arg(long, value_name = "FILE", num_args = 1.., conflicts_with = "port")]
     pub replay: Option<Vec<PathBuf>>,
+    // With --replay only (checked in `run`); its help is the subcommands'.
+    #[command(flatten)]
+    pub pieces: super::pieces::LaterPieces,
     /// Read a controller over Modbus RTU on this serial device instead of the twin.
     #[arg(long, value_name = "DEV")]
     pub port: Option<String>,
@@ -106,10 +109,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let settings_path = args.settings.clone().or_else(|| {
         home_dir("XDG_CONFIG_HOME", ".config").map(|d| d.join("servosight").join("hmi.json"))
     });
+    anyhow::ensure!(
+        !args.pieces.with_later_pieces || args.replay.is_some(),
+        "--with-later-pieces adds the later pieces of the recording --replay gives, and no \
+         --replay is given"
+    );
     let speed = ReplaySpeed::Factor(args.speed);
     let source = match (&args.replay, &args.port) {
         (Some(pieces), _) => SourceSpec::Replay {
-            pieces: pieces.clone(),
+            // Without the flag the replay says what it leaves out, as an event in the window.
+            pieces: if args.pieces.with_later_pieces {
+                super::pieces::recording_files(pieces, &args.pieces, "--replay")?.0
+            } else {
+                pieces.clone()
+            },
             options: ReplayOptions {
                 speed,
                 ..ReplayOptions::default()

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::pieces::{LaterPieces, recording_files};
 use crate::servosight_cli::{out, outln, refuse_overwriting_inputs};
 use anyhow::Context;
 use servosight::signal::{Channel, Recording, RecordingError, RecordingPieces};
@@ -15,6 +16,8 @@ pub struct Args {
     /// shift.csv shift-0001.csv …), so a piece missing between them shows as a gap.
     #[arg(required = true, num_args = 1..)]
     pub file: Vec<PathBuf>,
+    #[command(flatten)]
+    pub pieces: LaterPieces,
     /// Report a gap where the time step exceeds this many median steps.
     #[arg(long, default_value_t = 3.0)]
     pub gap_factor: f64,
@@ -56,7 +59,8 @@ struct Gap {
     length_s: f64,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    args.file = recording_files(&args.file, &args.pieces, "FILE")?.0;
     anyhow::ensure!(
         args.gap_factor.is_finite() && args.gap_factor > 1.0,
         "--gap-factor must be a number above 1 (a gap is a step longer than that many median \

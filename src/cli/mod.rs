@@ -18,6 +18,7 @@ mod fingerprint;
 mod fit;
 mod hmi;
 pub mod inspect;
+mod pieces;
 mod record;
 mod register_map;
 mod serial_args;

@@ -13,7 +13,7 @@ pub use csv_format::{
 };
 pub use error::{Location, RecordingError};
 pub use pieces::{
-    ReadProgress, RecordingPieces, group_pieces, later_pieces, piece_path, read_pieces,
-    with_later_pieces,
+    ReadProgress, RecordingPieces, group_pieces, later_pieces, piece_path, pieces_left_out,
+    read_pieces, with_later_pieces,
 };
 pub use recording::{Recording, Schema};

@@ -375,6 +375,25 @@ pub fn later_pieces(first: &Path) -> io::Result<Vec<PathBuf>> {
     Ok(numbered.into_iter().map(|(_, path)| path).collect())
 }
 
+/// The pieces the recorder continued the recording in that lie beside its first file
+/// ([`later_pieces`]) and are not among `given` (its files as a user gave them, the first
+/// first): what a command given `shift.csv` alone, or a glob that missed `shift-10000.csv`,
+/// leaves out. A piece given under another spelling of its path (`./shift-0001.csv`, a link)
+/// counts as given. Lists the directory, so call it off the UI thread.
+pub fn pieces_left_out(given: &[PathBuf]) -> io::Result<Vec<PathBuf>> {
+    let Some(first) = given.first() else {
+        return Ok(Vec::new());
+    };
+    // A path that cannot be resolved (a piece given that does not exist) is compared as spelt;
+    // reading it names the fault.
+    let resolved = |path: &Path| std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    let given: Vec<PathBuf> = given.iter().map(|p| resolved(p)).collect();
+    Ok(later_pieces(first)?
+        .into_iter()
+        .filter(|piece| !given.contains(&resolved(piece)))
+        .collect())
+}
+
 /// Which recording the file at `path` says it is a piece of, and which piece
 /// ([`RECORDING_KEY`], [`PART_KEY`], as the recorder writes them); `None` for a file that does
 /// not say both. Reads only the header.
@@ -692,6 +711,29 @@ mod tests {
         std::fs::write(&bare, "time_s\n").unwrap();
         std::fs::write(dir.path().join("run-0001.csv"), "time_s\n").unwrap();
         assert_eq!(names(later_pieces(&bare).unwrap()), ["run-0001.csv"]);
+    }
+
+    /// What a list of files leaves out of the recording its first file starts: the later
+    /// pieces beside it not in the list, a piece given under another spelling of its path
+    /// counting as given; nothing for an empty list.
+    #[test]
+    fn the_pieces_left_out_are_the_later_ones_not_given_however_spelt() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["day.csv", "day-0001.csv", "day-0002.csv", "day-0003.csv"] {
+            std::fs::write(dir.path().join(name), "time_s\n").unwrap();
+        }
+        let first = dir.path().join("day.csv");
+        let spelt_otherwise = dir.path().join(".").join("day-0002.csv");
+        let left_out = pieces_left_out(&[first.clone(), spelt_otherwise]).unwrap();
+        assert_eq!(
+            left_out,
+            [
+                dir.path().join("day-0001.csv"),
+                dir.path().join("day-0003.csv")
+            ]
+        );
+        assert_eq!(pieces_left_out(&[first]).unwrap().len(), 3);
+        assert!(pieces_left_out(&[]).unwrap().is_empty());
     }
 
     /// Where the first piece says which recording it is, as the recorder writes, only the

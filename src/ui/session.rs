@@ -267,15 +267,12 @@ const UPDATE_CHANNEL_CAPACITY: usize = 8192;
 /// cannot be listed: the replay itself is not affected).
 fn pieces_left_out(pieces: &[PathBuf]) -> Option<String> {
     let first = pieces.first()?;
-    let left_out: Vec<PathBuf> = crate::signal::later_pieces(first)
-        .ok()?
-        .into_iter()
-        .filter(|piece| !pieces.contains(piece))
-        .collect();
+    let left_out = crate::signal::pieces_left_out(pieces).ok()?;
     (!left_out.is_empty()).then(|| {
         format!(
             "replay: the recorder continued {} in {} beside it that this replay leaves out: \
-             give them after it (in the order recorded) to replay the whole recording",
+             give them after it (in the order recorded), or --with-later-pieces, to replay \
+             the whole recording",
             first.display(),
             crate::signal::RecordingPieces::short_name(&left_out)
         )
