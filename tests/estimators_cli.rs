@@ -1244,8 +1244,9 @@ fn the_analyses_of_a_recording_read_its_pieces_as_one() {
 
 /// An experiment the recorder cut into pieces (each says, as the recorder writes, which
 /// recording it is a piece of) is calibrated as one experiment: the same profile as from the
-/// whole file, no piece taken for a recording that starts on a warm machine. The same pieces
-/// without that header are two experiments, the second warned of as starting warm.
+/// whole file, no piece taken for a recording that starts on a warm machine; its first piece
+/// alone is warned of as leaving the other out. The same pieces without that header are two
+/// experiments, the second warned of as starting warm.
 #[test]
 fn calibrate_takes_the_pieces_of_an_experiment_as_one() {
     let dir = tempfile::tempdir().unwrap();
@@ -1310,6 +1311,18 @@ fn calibrate_takes_the_pieces_of_an_experiment_as_one() {
         )
     );
     assert!(!said.contains("starts on a warm machine"), "{said}");
+    assert!(!said.contains("leaves out"), "{said}");
+    // Its first piece alone: the piece left out is named.
+    let (_, _, said) = calibrate(&[&recorded[0]], "first-piece");
+    assert!(
+        said.contains(&format!(
+            "warning: the recorder continued {} in {} beside it, which were not given and this \
+             command leaves out: list them after it",
+            recorded[0].display(),
+            recorded[1].display()
+        )),
+        "{said}"
+    );
     let (from_plain, _, said) = calibrate(&[&plain[0], &plain[1]], "plain");
     assert!(
         from_plain != from_whole,

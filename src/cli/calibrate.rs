@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::servosight_cli::pieces::warn_of_pieces_left_out;
 use crate::servosight_cli::{emit_report, outln, refuse_overwriting_inputs, repeated};
 use anyhow::Context;
 use servosight::estimators::calibration::{
@@ -59,11 +60,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // The pieces a recorder cut one recording into (its `# recording:` and `# part:`) are read
     // as that one recording.
+    let recordings_given: Vec<PathBuf> = args
+        .database
+        .iter()
+        .chain(&args.experiments)
+        .cloned()
+        .collect();
     let read_all = |paths: &[PathBuf]| {
         group_pieces(paths)
             .context("cannot read recording")?
             .iter()
-            .map(|group| read_pieces(group).context("cannot read recording"))
+            .map(|group| {
+                // An experiment's second hour left out would fit other models without a word.
+                // A piece given as a recording of its own (no header to join it by) is given.
+                let named: Vec<PathBuf> = group.iter().chain(&recordings_given).cloned().collect();
+                warn_of_pieces_left_out(
+                    &named,
+                    "list them after it, in the order recorded, to take the recording as one",
+                );
+                read_pieces(group).context("cannot read recording")
+            })
             .collect::<anyhow::Result<Vec<_>>>()
     };
     let database = read_all(&args.database)?;

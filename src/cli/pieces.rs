@@ -53,14 +53,24 @@ pub fn recording_files(
         }
         return Ok((files, None));
     }
+    let warning = warn_of_pieces_left_out(
+        given,
+        "add --with-later-pieces (with the first file alone) to read the whole recording",
+    );
+    Ok((given.to_vec(), warning))
+}
+
+/// Warns on stderr, and returns the warning, where the recorder continued the recording
+/// `given` starts in pieces beside its first file that `given` leaves out; `remedy` says how
+/// to read them.
+pub fn warn_of_pieces_left_out(given: &[PathBuf], remedy: &str) -> Option<String> {
     // A directory that cannot be listed leaves nothing to warn of: reading the files given
     // names any fault of theirs.
     let left_out = pieces_left_out(given).unwrap_or_default();
     let warning = given.first().filter(|_| !left_out.is_empty()).map(|first| {
         format!(
             "the recorder continued {} in {} beside it, which were not given and this command \
-             leaves out: add --with-later-pieces (with the first file alone) to read the whole \
-             recording",
+             leaves out: {remedy}",
             first.display(),
             RecordingPieces::short_name(&left_out)
         )
@@ -68,5 +78,5 @@ pub fn recording_files(
     if let Some(warning) = &warning {
         eprintln!("warning: {warning}");
     }
-    Ok((given.to_vec(), warning))
+    warning
 }
