@@ -844,6 +844,31 @@ mod tests {
         );
     }
 
+    /// A spreadsheet's export with `;` between columns and a decimal comma, or a file with
+    /// tabs between them, is named for what it is, not for a first column it lacks.
+    #[test]
+    fn a_file_separated_otherwise_than_by_commas_is_named_so() {
+        let err = read("# k: v\ntime_s;X.speed_rpm\n0;1,5\n")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            err,
+            "t.csv: line 2: the columns are separated by `;`, not by commas: CSV v1 separates \
+             columns with `,` and writes numbers with a decimal point (a spreadsheet set to a \
+             language with a decimal comma exports `;` and `1,5`): export it comma-separated \
+             with decimal points"
+        );
+        let err = read("time_s\tX.speed_rpm\n0\t1.5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("separated by tabs, not by commas"), "{err}");
+        let err = read("t,X.speed_rpm\n0,1\n").unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "t.csv: line 1: the first column must be `time_s`, found `t`"
+        );
+    }
+
     #[test]
     fn empty_file_and_metadata_only_have_no_header() {
         for text in ["", "# a: b\n", "\n\n"] {

@@ -65,6 +65,19 @@ pub enum RecordingError {
         /// What the header has instead.
         found: String,
     },
+    /// The header's columns are separated by something else than a comma: a spreadsheet's
+    /// export in a language that writes a decimal comma (`;`), or a tab-separated file.
+    #[error(
+        "{at}: the columns are separated by {separator}, not by commas: CSV v1 separates columns \
+         with `,` and writes numbers with a decimal point (a spreadsheet set to a language with \
+         a decimal comma exports `;` and `1,5`): export it comma-separated with decimal points"
+    )]
+    NotCommaSeparated {
+        /// The header line.
+        at: Location,
+        /// The separator found, in words (`` `;` ``, "tabs").
+        separator: &'static str,
+    },
     /// A header names the same column twice.
     #[error("{at}: duplicate column `{name}` (also column {first})")]
     DuplicateColumn {

@@ -42,6 +42,22 @@ impl Schema {
         match names.first() {
             Some(first) if first == TIME => {}
             Some(first) => {
+                // The csv reader split the header at commas; a header that starts `time_s`
+                // and goes on after another separator was written with that one.
+                let separator = match first
+                    .strip_prefix(TIME)
+                    .and_then(|rest| rest.chars().next())
+                {
+                    Some(';') => Some("`;`"),
+                    Some('\t') => Some("tabs"),
+                    _ => None,
+                };
+                if let Some(separator) = separator {
+                    return Err(RecordingError::NotCommaSeparated {
+                        at: at(None),
+                        separator,
+                    });
+                }
                 return Err(RecordingError::FirstColumnNotTime {
                     at: at(None),
                     found: first.clone(),
