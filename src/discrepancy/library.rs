@@ -2442,6 +2442,11 @@ fn winding_mismatch_family(
         None
     };
     let mut signals = vec![winding.clone(), format!("{winding} (simulated)")];
+    if cause.physics == Physics::ThermalInertia {
+        return Some(inertia_through_the_winding_family(
+            ctx, signals, taus, limit, axis,
+        ));
+    }
     let (theta_names, grid, limits) = if coolant {
         signals.push(COOLANT.into());
         // Members of the mismatch alone (`winding_alone` 1) and with the coolant's share
@@ -2526,6 +2531,78 @@ fn winding_mismatch_family(
     ))
 }
 
+/// Where a member of [`inertia_through_the_winding_family`] keeps the time constant of the
+/// part's own missing heat capacity (0: the winding's mismatch alone).
+const OWN_CAPACITY: usize = 1;
+
+/// [`winding_mismatch_family`] where the winding's analysis names thermal inertia: a heat
+/// capacity the simulation got wrong is seldom the winding's alone, and the part's own
+/// differs too. Its members are the winding's mismatch through the part's lags (one or two,
+/// [`WINDING_LAG_RATIOS`]), alone or beside the part's own capacity lag, built as
+/// [`thermal_inertia_family`] builds it (the simulated target through a lag of the member's
+/// own τ, and of τ times the same lag ratio where it has two, less the target; no coolant
+/// speed-up). The part's own form alone is already on offer, and once it is chosen the
+/// selection does not offer a second correction of its kind: on the independent check's
+/// front bearings with thermal inertia left out (seeds 1 and 3), the part's capacity alone
+/// leaves 0.24 and 0.29 °C in sample and the winding's mismatch alone 0.45 and 0.34 °C, the
+/// two together 0.07 and 0.13 °C (Python, the same forms), and the report, which named the
+/// part's own capacity, was left 11.6 × its sample noise away held out.
+fn inertia_through_the_winding_family(
+    ctx: &Context,
+    mut signals: Vec<String>,
+    taus: &[f64],
+    limit: Option<GainLimit>,
+    axis: AxisId,
+) -> Family {
+    signals.push(format!("{} (simulated)", ctx.target));
+    let own_taus = std::iter::once(0.0).chain(taus.iter().copied());
+    let grid = taus
+        .iter()
+        .flat_map(|&tau| {
+            own_taus
+                .clone()
+                .flat_map(move |own| WINDING_LAG_RATIOS.map(|ratio| vec![tau, own, ratio]))
+        })
+        .collect();
+    Family {
+        kind: Kind::Physics(Physics::ThermalInertia),
+        signals,
+        theta_names: vec!["tau_s", "own_capacity_tau_s", "lag_ratio"],
+        grid,
+        refine: Some(Refine { log: true }),
+        build: Box::new(move |ctx, theta| {
+            let Some(mismatch) = ctx.axis(axis).and_then(winding_mismatch) else {
+                return Vec::new();
+            };
+            let mut columns = heat_path(ctx, &mismatch, theta, Start::Rest);
+            let own = theta.get(OWN_CAPACITY).copied().unwrap_or(0.0);
+            if own > 0.0 {
+                let ratio = theta.last().copied().unwrap_or(0.0);
+                // No coolant speed-up: `capacity_lag` reads none from [τ, 0].
+                columns.extend(heat_path_through(&[own, ratio], |tau| {
+                    capacity_lag(ctx, tau, &[tau, 0.0])
+                        .iter()
+                        .zip(&ctx.sim)
+                        .map(|(lagged, simulated)| lagged - simulated)
+                        .collect()
+                }));
+            }
+            columns
+        }),
+        limits: limit.into_iter().collect(),
+        axis: Some(axis),
+        lagged: true,
+        state: false,
+        // The simulated target is a signal of the members that read it.
+        refinements: vec![Refinement {
+            theta: OWN_CAPACITY,
+            signal: Some(2),
+            selectable: true,
+        }],
+        free_start: None,
+    }
+}
+
 /// Where a member of a [`winding_mismatch_family`] beside a coolant that switches says
 /// whether it follows the winding's mismatch alone (1) or with the coolant's share (0).
 const WINDING_ALONE: usize = 1;
@@ -2578,6 +2655,10 @@ pub fn reads_winding_mismatch(signals: &[String]) -> bool {
     let (winding, simulated) = match signals {
         [winding, simulated] => (winding, simulated),
         [winding, simulated, coolant] if coolant == COOLANT => (winding, simulated),
+        // The part's own simulated course ([`inertia_through_the_winding_family`]).
+        [winding, simulated, part] if part.ends_with(" (simulated)") && part != simulated => {
+            (winding, simulated)
+        }
         _ => return false,
     };
     *simulated == format!("{winding} (simulated)")
@@ -3543,7 +3624,8 @@ pub fn explain(
         let unsettled = steady_note(&mut p);
         // The coolant's share ([`winding_mismatch_family`]'s second driver), where the
         // member has it: the steady gains of the two drivers add while the coolant flows.
-        let flowing = if driver_coefficients(1).is_empty() {
+        let shares_coolant = family.signals.last().is_some_and(|s| s == COOLANT);
+        let flowing = if driver_coefficients(1).is_empty() || !shares_coolant {
             String::new()
         } else {
             let coolant_share = driver(1).0;
@@ -3566,6 +3648,23 @@ pub fn explain(
                 String::new()
             }
         };
+        // The part's own heat capacity beside the winding's
+        // ([`inertia_through_the_winding_family`]), as thermal inertia's own form says it.
+        let own_tau = theta.get(OWN_CAPACITY).copied().filter(|_| !shares_coolant);
+        let own = match own_tau.filter(|t| *t > 0.0 && !driver_coefficients(1).is_empty()) {
+            Some(own_tau) => {
+                let ratio = theta.last().copied().unwrap_or(0.0);
+                let own_lags = lags_of(&[own_tau, ratio]);
+                let (share, mean_tau) = lag_summary(driver_coefficients(1), &own_lags);
+                p.insert("own_capacity_share".into(), share);
+                p.insert("own_capacity_tau_min".into(), mean_tau / 60.0);
+                format!(
+                    "; its own heat capacity differs too: it lags its simulated course through {} (share {share:.2})",
+                    tau_phrase(mean_tau, ctx.duration_s)
+                )
+            }
+            None => String::new(),
+        };
         // Each other physics the part inherits, in words and machine-readable, with its
         // weight on the winding.
         let mut also = String::new();
@@ -3578,7 +3677,7 @@ pub fn explain(
             ));
         }
         let text = format!(
-            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}{unsettled}{flowing}; on the winding itself the analysis names {}: {}{also}",
+            "the {target} follows the {axis_name} motor's winding (`{winding}`), which runs {:.2} K {} than simulated on average ({largest:+.2} K at most), by {g0:.3}{unit}/K through {tau}{unsettled}{flowing}{own}; on the winding itself the analysis names {}: {}{also}",
             mean_mismatch.abs(),
             if mean_mismatch >= 0.0 {
                 "warmer"
