@@ -2406,6 +2406,9 @@ impl WindingCause {
 /// warmer than simulated under coolant then leaves its part cooler, not warmer. Members
 /// with the mismatch alone are offered beside, and the held-out blocks choose.
 ///
+/// Where the winding's analysis names thermal inertia, the part's own heat capacity is
+/// offered beside the mismatch as one correction ([`inertia_through_the_winding_family`]).
+///
 /// On the independent check's spindle (seed 9, copper loss left out, 7.5 h), the winding's
 /// mismatch through one 20 min lag explains 0.99 of the growth's residual in sample, where
 /// the copper loss rebuilt from the current explains 0.64. With speed-dependent cooling left
@@ -2535,6 +2538,9 @@ fn winding_mismatch_family(
 /// part's own missing heat capacity (0: the winding's mismatch alone).
 const OWN_CAPACITY: usize = 1;
 
+/// The name of [`OWN_CAPACITY`]'s parameter, by which a member is known to have it.
+const OWN_CAPACITY_NAME: &str = "own_capacity_tau_s";
+
 /// [`winding_mismatch_family`] where the winding's analysis names thermal inertia: a heat
 /// capacity the simulation got wrong is seldom the winding's alone, and the part's own
 /// differs too. Its members are the winding's mismatch through the part's lags (one or two,
@@ -2567,7 +2573,7 @@ fn inertia_through_the_winding_family(
     Family {
         kind: Kind::Physics(Physics::ThermalInertia),
         signals,
-        theta_names: vec!["tau_s", "own_capacity_tau_s", "lag_ratio"],
+        theta_names: vec!["tau_s", OWN_CAPACITY_NAME, "lag_ratio"],
         grid,
         refine: Some(Refine { log: true }),
         build: Box::new(move |ctx, theta| {
@@ -3650,7 +3656,10 @@ pub fn explain(
         };
         // The part's own heat capacity beside the winding's
         // ([`inertia_through_the_winding_family`]), as thermal inertia's own form says it.
-        let own_tau = theta.get(OWN_CAPACITY).copied().filter(|_| !shares_coolant);
+        let own_tau = theta
+            .get(OWN_CAPACITY)
+            .copied()
+            .filter(|_| family.theta_names.get(OWN_CAPACITY) == Some(&OWN_CAPACITY_NAME));
         let own = match own_tau.filter(|t| *t > 0.0 && !driver_coefficients(1).is_empty()) {
             Some(own_tau) => {
                 let ratio = theta.last().copied().unwrap_or(0.0);
