@@ -861,7 +861,12 @@ mod tests {
         let err = read("time_s\tX.speed_rpm\n0\t1.5\n")
             .unwrap_err()
             .to_string();
-        assert!(err.contains("separated by tabs, not by commas"), "{err}");
+        assert_eq!(
+            err,
+            "t.csv: line 1: the columns are separated by tabs, not by commas: CSV v1 separates \
+             columns with `,` and writes numbers with a decimal point: export it \
+             comma-separated with decimal points"
+        );
         let err = read("t,X.speed_rpm\n0,1\n").unwrap_err().to_string();
         assert_eq!(
             err,

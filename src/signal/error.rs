@@ -38,6 +38,37 @@ pub struct PieceOrder {
     pub previous_s: f64,
 }
 
+/// A separator other than a comma that a header was written with
+/// ([`RecordingError::NotCommaSeparated`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Separator {
+    /// `;`: a spreadsheet's export in a language that writes a decimal comma.
+    Semicolon,
+    /// A tab.
+    Tab,
+}
+
+impl Separator {
+    /// The separator in words.
+    pub fn name(self) -> &'static str {
+        match self {
+            Separator::Semicolon => "`;`",
+            Separator::Tab => "tabs",
+        }
+    }
+
+    /// Where a file separated so usually comes from, as a clause (empty where nothing is
+    /// known).
+    pub fn likely_source(self) -> &'static str {
+        match self {
+            Separator::Semicolon => {
+                " (a spreadsheet set to a language with a decimal comma exports `;` and `1,5`)"
+            }
+            Separator::Tab => "",
+        }
+    }
+}
+
 /// Everything that can be wrong with a recording, read or built.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
@@ -68,15 +99,17 @@ pub enum RecordingError {
     /// The header's columns are separated by something else than a comma: a spreadsheet's
     /// export in a language that writes a decimal comma (`;`), or a tab-separated file.
     #[error(
-        "{at}: the columns are separated by {separator}, not by commas: CSV v1 separates columns \
-         with `,` and writes numbers with a decimal point (a spreadsheet set to a language with \
-         a decimal comma exports `;` and `1,5`): export it comma-separated with decimal points"
+        "{at}: the columns are separated by {}, not by commas: CSV v1 separates columns with \
+         `,` and writes numbers with a decimal point{}: export it comma-separated with decimal \
+         points",
+        separator.name(),
+        separator.likely_source()
     )]
     NotCommaSeparated {
         /// The header line.
         at: Location,
-        /// The separator found, in words (`` `;` ``, "tabs").
-        separator: &'static str,
+        /// The separator found.
+        separator: Separator,
     },
     /// A header names the same column twice.
     #[error("{at}: duplicate column `{name}` (also column {first})")]

@@ -11,7 +11,7 @@ pub use csv_format::{
     AVERAGED_OVER_S, RecordingReader, RecordingWriter, RowSource, read_recording, write_recording,
     write_recording_to,
 };
-pub use error::{Location, RecordingError};
+pub use error::{Location, RecordingError, Separator};
 pub use pieces::{
     ReadProgress, RecordingPieces, group_pieces, later_pieces, piece_path, pieces_left_out,
     read_pieces, with_later_pieces,

@@ -4,7 +4,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use super::channel::{TIME, plausible_range_of};
-use super::error::{Location, RecordingError};
+use super::error::{Location, RecordingError, Separator};
 
 /// The ordered column names of a recording or a frame stream, with a name → index map.
 ///
@@ -48,8 +48,8 @@ impl Schema {
                     .strip_prefix(TIME)
                     .and_then(|rest| rest.chars().next())
                 {
-                    Some(';') => Some("`;`"),
-                    Some('\t') => Some("tabs"),
+                    Some(';') => Some(Separator::Semicolon),
+                    Some('\t') => Some(Separator::Tab),
                     _ => None,
                 };
                 if let Some(separator) = separator {
