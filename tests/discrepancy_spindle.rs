@@ -453,7 +453,7 @@ fn convection_left_out_reaches_the_bearing_by_what_the_coolant_did_not_take_from
 /// names thermal inertia, and the bearing follows both the winding's slower mismatch (through
 /// the housing) and its own larger capacity. The part's own capacity alone, which the build
 /// before named, left the bearing 0.205 °C away held out (4.1 × its thermometer's noise); the
-/// two together, named as one thermal inertia through the winding, 0.144 °C (2.9 ×). What is
+/// two together, named as one thermal inertia through the winding, 0.152 °C (3.0 ×). What is
 /// left is the housing's own capacity, between the winding and the bearing, which neither
 /// lag has (the winding's own form leaves it 4.7 × its noise away too).
 #[test]
